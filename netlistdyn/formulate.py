@@ -1,0 +1,598 @@
+"""Tree/cotree state equations: KCL on tree-capacitor cutsets, KVL on link-inductor loops.
+
+Every branch has one *primary* unknown: its voltage when it is a tree
+branch, its current when it is a link. Every other branch quantity follows
+from the normal tree (:class:`~netlistdyn.graph.TreeSplit`):
+
+* link voltages by KVL around their fundamental loops, v_l = Σ loops[l,t] v_t;
+* tree currents by KCL across their fundamental cutsets, i_t = −Σ loops[l,t] i_l.
+
+Each branch contributes one constitutive equation, giving a linear
+descriptor system ``G w + E w' + F u = 0`` in the primaries ``w``. The
+primaries fall into four classes:
+
+``x``  tree-capacitor voltages and link-inductor currents — the states;
+``s``  independent-source primaries, equal to an input;
+``d``  excess elements — link-capacitor currents C·d/dt(loop voltage) and
+       tree-inductor voltages d/dt(cutset flux) — defined by derivatives;
+``y``  everything else, found from the resistive equations.
+
+Eliminating ``s``, ``d`` and ``y`` (one sparse factorisation of the
+resistive part) leaves ``M x' = N x + B₀ u + K₀ u'``. An input derivative
+that survives is removed by the change of variable x̃ = x − M⁻¹K₀ u, and
+an output that needs it gets the explicit term ``D1 u'``. Finally capacitor
+voltages are scaled to charges, so the states are the seeds' Q_C and I_L.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .errors import NetlistError, SingularCircuitError, TopologyError, UsageError
+from .graph import CircuitGraph, Role, TreeSplit, build_graph, check_sources, normal_tree
+from .model import CompileInfo, ExcessElement, StateShift, StateSpaceModel
+from .netlist import GROUND, Element, Kind, Netlist
+from .probes import Probe, default_probes, parse_probe
+
+#: Entries below this (relative to the largest in their matrix) are rounding noise.
+ZERO_TOL = 1e-13
+#: A factorisation whose pivots span more than this ratio is treated as singular.
+SINGULAR_RCOND = 1e-14
+
+
+@dataclass(frozen=True)
+class Classes:
+    """Branch indices of each class of primary unknown (see module docstring)."""
+
+    x: np.ndarray
+    s: np.ndarray
+    d: np.ndarray
+    y: np.ndarray
+    source_input: np.ndarray  # for each s branch, its input column
+
+
+@dataclass(frozen=True)
+class _Block:
+    """Rows of equations after eliminating s and d: coefficients of x, y, x', y', u, u'."""
+
+    x: sp.csr_array
+    y: sp.csr_array
+    dx: sp.csr_array
+    dy: sp.csr_array
+    u: sp.csr_array
+    du: sp.csr_array
+
+
+@dataclass(frozen=True)
+class _Equations:
+    """The descriptor system G w + E w' + F u = 0 with maps from primaries to branch quantities."""
+
+    G: sp.csr_array
+    E: sp.csr_array
+    F: sp.csr_array
+    vmap: sp.csr_array  # branch voltages from primaries
+    imap: sp.csr_array  # branch currents from primaries
+
+
+def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> StateSpaceModel:
+    """Compile a parsed netlist to a state-space model.
+
+    Parameters
+    ----------
+    netlist : Netlist
+        Parsed netlist.
+    outputs : sequence of str, optional
+        Output specifications (``v(n)``, ``v(a,b)``, ``i(elem)``); default:
+        every non-ground node voltage.
+
+    Returns
+    -------
+    StateSpaceModel
+
+    Raises
+    ------
+    NetlistError
+        For inconsistent topologies or singular circuits.
+    UsageError
+        For output specifications that name unknown nodes or elements.
+    """
+    probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
+    circuit, tree = choose_tree(netlist)
+    check_sources(circuit, tree)
+    equations = assemble(netlist, circuit, tree)
+    classes = classify(circuit, tree, netlist)
+    return reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+
+
+def choose_tree(netlist: Netlist) -> tuple[CircuitGraph, TreeSplit]:
+    """Build the graph and a normal tree with one port of every transformer in the tree.
+
+    A transformer port is first taken as voltage-defined (port 1) and the
+    other as current-defined; where a loop of voltage sources pushes port 1
+    out of the tree, the roles are swapped.
+    """
+    swapped: frozenset[str] = frozenset()
+    for _ in range(3):
+        circuit = build_graph(netlist, swapped)
+        tree = normal_tree(circuit)
+        bad = _misplaced_transformers(circuit, tree)
+        if not bad:
+            return circuit, tree
+        flip = frozenset(e.key for e in bad)
+        if flip <= swapped:
+            break
+        swapped = swapped ^ flip
+    element = bad[0]
+    raise TopologyError(
+        f"{element.label}: both ports are fixed by the rest of the circuit "
+        "(each port lies in a loop of voltage sources or a cutset of current sources)",
+        element.loc,
+    )
+
+
+def _misplaced_transformers(circuit: CircuitGraph, tree: TreeSplit) -> list[Element]:
+    counts: dict[str, tuple[Element, int]] = {}
+    for branch in circuit.branches:
+        if branch.element.kind is Kind.TRANSFORMER:
+            elem, n = counts.get(branch.element.key, (branch.element, 0))
+            counts[branch.element.key] = (elem, n + int(tree.in_tree[branch.index]))
+    return [elem for elem, n in counts.values() if n != 1]
+
+
+def _inductance_matrix(netlist: Netlist, circuit: CircuitGraph) -> sp.csr_array:
+    """Branch inductance matrix (H): self inductances and mutual M = k√(L1 L2)."""
+    index = {b.element.key: b.index for b in circuit.branches if b.element.kind is Kind.INDUCTOR}
+    rows, cols, vals = [], [], []
+    for key, k in index.items():
+        rows.append(k)
+        cols.append(k)
+        vals.append(circuit.branches[k].element.value)
+    for element in netlist.elements:
+        if element.kind is Kind.COUPLING:
+            assert element.coupled is not None
+            a, b = (index[name] for name in element.coupled)
+            la, lb = circuit.branches[a].element.value, circuit.branches[b].element.value
+            if la * lb <= 0:
+                raise NetlistError(
+                    f"{element.label}: coupled inductors must have inductances of the same sign",
+                    element.loc,
+                )
+            mutual = element.value * np.sqrt(la * lb) * np.sign(la)
+            rows += [a, b]
+            cols += [b, a]
+            vals += [mutual, mutual]
+    n = circuit.nbranches
+    return sp.csr_array((vals, (rows, cols)), shape=(n, n))
+
+
+def _potential_rows(tree: TreeSplit, pairs: Sequence[tuple[str, str]], n: int) -> sp.csr_array:
+    """Rows v(a) − v(b) over the primaries, one per (a, b) pair."""
+    rows, cols, vals = [], [], []
+    for r, (a, b) in enumerate(pairs):
+        coeffs: dict[int, float] = {}
+        for node, sign in ((a, 1.0), (b, -1.0)):
+            if node != GROUND:
+                for k, c in tree.potential(node).items():
+                    coeffs[k] = coeffs.get(k, 0.0) + sign * c
+        for k, c in coeffs.items():
+            if c:
+                rows.append(r)
+                cols.append(k)
+                vals.append(c)
+    return sp.csr_array((vals, (rows, cols)), shape=(len(pairs), n))
+
+
+def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equations:
+    """Write one constitutive equation per branch over the primary unknowns.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    circuit : CircuitGraph
+    tree : TreeSplit
+
+    Returns
+    -------
+    _Equations
+        ``G w + E w' + F u = 0`` with ``vmap``/``imap`` giving every branch
+        voltage and current from ``w``.
+    """
+    n = circuit.nbranches
+    tree_diag = sp.diags_array(tree.in_tree.astype(float))
+    link_diag = sp.diags_array((~tree.in_tree).astype(float))
+    vmap = (tree_diag + tree.loops).tocsr()
+    imap = (link_diag - tree.loops.T).tocsr()
+
+    inputs = {e.key: j for j, e in enumerate(netlist.sources)}
+    branch_of = {b.element.key: b.index for b in circuit.branches if b.element.kind is not Kind.TRANSFORMER}
+    dv = np.zeros(n)  # coefficient of the branch's own voltage
+    di = np.zeros(n)  # coefficient of the branch's own current
+    ev = np.zeros(n)  # coefficient of the derivative of its own voltage (capacitors)
+    f_rows, f_cols, f_vals = [], [], []
+    # Couplings to other branches' quantities: rows of (voltage, current, control-voltage) terms.
+    xv_rows, xv_cols, xv_vals = [], [], []
+    xi_rows, xi_cols, xi_vals = [], [], []
+    control_pairs: list[tuple[str, str]] = []
+    control_rows: list[int] = []
+    control_gain: list[float] = []
+    for branch in circuit.branches:
+        k, element = branch.index, branch.element
+        kind = element.kind
+        if kind is Kind.RESISTOR:
+            dv[k], di[k] = 1.0, -element.value
+        elif kind is Kind.CAPACITOR:
+            di[k], ev[k] = 1.0, -element.value
+        elif kind is Kind.INDUCTOR:
+            dv[k] = 1.0
+        elif kind in (Kind.VSOURCE, Kind.ISOURCE):
+            if kind is Kind.VSOURCE:
+                dv[k] = 1.0
+            else:
+                di[k] = 1.0
+            f_rows.append(k)
+            f_cols.append(inputs[element.key])
+            f_vals.append(-1.0)
+        elif kind in (Kind.VCVS, Kind.VCCS):
+            assert element.control_nodes is not None
+            if kind is Kind.VCVS:
+                dv[k] = 1.0
+            else:
+                di[k] = 1.0
+            control_pairs.append(element.control_nodes)
+            control_rows.append(k)
+            control_gain.append(-element.value)
+        elif kind in (Kind.CCCS, Kind.CCVS):
+            assert element.control_source is not None
+            if kind is Kind.CCCS:
+                di[k] = 1.0
+            else:
+                dv[k] = 1.0
+            xi_rows.append(k)
+            xi_cols.append(branch_of[element.control_source])
+            xi_vals.append(-element.value)
+        elif kind is Kind.TRANSFORMER:
+            # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
+            ratio = element.value
+            if branch.port == 0:
+                dv[k] = 1.0
+                xv_rows.append(k)
+                xv_cols.append(k + 1)
+                xv_vals.append(-ratio)
+            else:
+                di[k] = 1.0
+                xi_rows.append(k)
+                xi_cols.append(k - 1)
+                xi_vals.append(ratio)
+        else:  # pragma: no cover - the parser admits no other kinds
+            raise AssertionError(kind)
+
+    select_v = sp.csr_array((xv_vals, (xv_rows, xv_cols)), shape=(n, n))
+    select_i = sp.csr_array((xi_vals, (xi_rows, xi_cols)), shape=(n, n))
+    G = sp.diags_array(dv) @ vmap + sp.diags_array(di) @ imap + select_v @ vmap + select_i @ imap
+    if control_pairs:
+        ctrl = _potential_rows(tree, control_pairs, n)
+        place = sp.csr_array(
+            (control_gain, (control_rows, range(len(control_rows)))), shape=(n, len(control_rows))
+        )
+        G = G + place @ ctrl
+    E = sp.diags_array(ev) @ vmap - _inductance_matrix(netlist, circuit) @ imap
+    F = sp.csr_array((f_vals, (f_rows, f_cols)), shape=(n, len(inputs)))
+    return _Equations(_clean(G), _clean(E), F, vmap, imap)
+
+
+def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classes:
+    """Sort the primaries into states, sources, excess elements and the rest."""
+    inputs = {e.key: j for j, e in enumerate(netlist.sources)}
+    x_caps, x_inds, s, d, y, source_input = [], [], [], [], [], []
+    for branch in circuit.branches:
+        k = branch.index
+        in_tree = bool(tree.in_tree[k])
+        kind = branch.element.kind
+        if kind is Kind.CAPACITOR:
+            (x_caps if in_tree else d).append(k)
+        elif kind is Kind.INDUCTOR:
+            (d if in_tree else x_inds).append(k)
+        elif (kind is Kind.VSOURCE and in_tree) or (kind is Kind.ISOURCE and not in_tree):
+            s.append(k)
+            source_input.append(inputs[branch.element.key])
+        else:
+            y.append(k)
+    as_array = lambda v: np.asarray(v, dtype=np.intp)  # noqa: E731
+    return Classes(
+        as_array(x_caps + x_inds), as_array(s), as_array(d), as_array(y), as_array(source_input)
+    )
+
+
+def _clean(matrix: sp.sparray) -> sp.csr_array:
+    """CSR copy with rounding noise and explicit zeros removed."""
+    out = sp.csr_array(matrix, dtype=float)
+    if out.nnz:
+        scale = np.abs(out.data).max()
+        out.data[np.abs(out.data) <= ZERO_TOL * scale] = 0.0
+        out.eliminate_zeros()
+    return out
+
+
+def _is_zero(matrix: sp.sparray, scale: float) -> bool:
+    return matrix.nnz == 0 or float(np.abs(matrix.data).max()) <= ZERO_TOL * max(scale, 1e-300)
+
+
+def _cols(matrix: sp.csr_array, index: np.ndarray) -> sp.csr_array:
+    return sp.csr_array(matrix[:, index]) if len(index) else sp.csr_array((matrix.shape[0], 0))
+
+
+def _rows(matrix: sp.csr_array, index: np.ndarray) -> sp.csr_array:
+    return sp.csr_array(matrix[index, :]) if len(index) else sp.csr_array((0, matrix.shape[1]))
+
+
+def _eliminate_sources_and_excess(
+    G: sp.csr_array, E: sp.csr_array, F: sp.csr_array, full: _Equations, classes: Classes, m: int
+) -> _Block:
+    """Substitute source primaries (= inputs) and excess-element primaries (derivatives).
+
+    Parameters
+    ----------
+    G, E, F : scipy.sparse.csr_array
+        Rows to transform (coefficients of w, w' and u).
+    full : _Equations
+        The whole system (for the excess elements' defining rows).
+    classes : Classes
+    m : int
+        Number of inputs.
+    """
+    unit = sp.csr_array(
+        (np.ones(len(classes.s)), (np.arange(len(classes.s)), classes.source_input)),
+        shape=(len(classes.s), m),
+    )
+    u = F + _cols(G, classes.s) @ unit
+    du = _cols(E, classes.s) @ unit
+    dx, dy = _cols(E, classes.x), _cols(E, classes.y)
+    if len(classes.d):
+        # Excess rows read w_d + E_d w' = 0, so w_d = −E_d w' (never another excess primary).
+        e_d = _rows(full.E, classes.d)
+        g_d = _cols(G, classes.d)
+        dx = dx - g_d @ _cols(e_d, classes.x)
+        dy = dy - g_d @ _cols(e_d, classes.y)
+        du = du - g_d @ (_cols(e_d, classes.s) @ unit)
+    return _Block(
+        _cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du)
+    )
+
+
+def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
+    """matrix⁻¹ rhs for a square sparse matrix, refusing (near-)singular ones.
+
+    Diagonal matrices are inverted directly; small ones densely with LAPACK's
+    reciprocal condition estimate; large ones with SuperLU.
+    """
+    n = matrix.shape[0]
+    if n == 0 or rhs.shape[1] == 0:
+        return sp.csr_array((n, rhs.shape[1]))
+    coo = matrix.tocoo()
+    if np.all(coo.row == coo.col) and coo.nnz == n:
+        diag = matrix.diagonal()
+        if np.min(np.abs(diag)) <= SINGULAR_RCOND * np.max(np.abs(diag)):
+            raise SingularCircuitError(what)
+        return _clean(sp.diags_array(1.0 / diag) @ rhs)
+    if n <= 1500:
+        dense = matrix.toarray()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", sla.LinAlgWarning)
+            try:
+                lu = sla.lu_factor(dense)
+            except (sla.LinAlgError, sla.LinAlgWarning, ValueError):
+                raise SingularCircuitError(what) from None
+        rcond = _rcond(dense, lu)
+        if rcond < SINGULAR_RCOND:
+            raise SingularCircuitError(what)
+        return _clean(sp.csr_array(sla.lu_solve(lu, rhs.toarray())))
+    try:
+        lu_sparse = spla.splu(sp.csc_matrix(matrix))
+    except RuntimeError:
+        raise SingularCircuitError(what) from None
+    pivots = np.abs(lu_sparse.U.diagonal())
+    if pivots.min() <= SINGULAR_RCOND * pivots.max():
+        raise SingularCircuitError(what)
+    rhs_csc = sp.csc_array(rhs)
+    nonzero_cols = np.flatnonzero(np.diff(rhs_csc.indptr))
+    blocks = []
+    result = sp.lil_array((n, rhs.shape[1]))
+    for start in range(0, len(nonzero_cols), 256):
+        cols = nonzero_cols[start : start + 256]
+        sol = lu_sparse.solve(rhs_csc[:, cols].toarray())
+        blocks.append((cols, sol))
+    for cols, sol in blocks:
+        result[:, cols] = sol
+    return _clean(result)
+
+
+def _rcond(dense: np.ndarray, lu: tuple[np.ndarray, np.ndarray]) -> float:
+    anorm = np.linalg.norm(dense, 1)
+    if anorm == 0:
+        return 0.0
+    (gecon,) = sla.get_lapack_funcs(("gecon",), (lu[0],))
+    rcond, _ = gecon(lu[0], anorm, norm="1")
+    return float(rcond)
+
+
+def reduce_to_state_space(
+    netlist: Netlist,
+    circuit: CircuitGraph,
+    tree: TreeSplit,
+    equations: _Equations,
+    classes: Classes,
+    probes: Sequence[Probe],
+) -> StateSpaceModel:
+    """Eliminate everything but the states and build A, B, C, D, D1.
+
+    See the module docstring for the algebra.
+    """
+    m = len(netlist.sources)
+    G, E, F = equations.G, equations.E, equations.F
+    scale = max(np.abs(G.data).max() if G.nnz else 0.0, np.abs(E.data).max() if E.nnz else 0.0)
+    involved = _controlled_labels(netlist)
+
+    yb = _eliminate_sources_and_excess(
+        _rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y), equations, classes, m
+    )
+    if not _is_zero(yb.dy, scale):
+        raise NetlistError(
+            "a controlled source depends on the derivative of a resistive quantity "
+            f"({', '.join(involved) or 'check the controlled sources'}); not supported",
+            netlist.elements[0].loc,
+        )
+    resistive_msg = (
+        "the resistive part of the circuit has no unique solution for these values"
+        + (f" (check {', '.join(involved)})" if involved else " (check negative resistances)")
+    )
+    rhs = sp.hstack([yb.x, yb.dx, yb.u, yb.du], format="csr")
+    solved = -_solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else sp.csr_array((0, rhs.shape[1]))
+    nx_ = len(classes.x)
+    splits = np.cumsum([nx_, nx_, m])
+    P = _clean(solved[:, : splits[0]])
+    R = _clean(solved[:, splits[0] : splits[1]])
+    Q = _clean(solved[:, splits[1] : splits[2]])
+    S = _clean(solved[:, splits[2] :])
+
+    xb = _eliminate_sources_and_excess(
+        _rows(G, classes.x), _rows(E, classes.x), _rows(F, classes.x), equations, classes, m
+    )
+    if not (_is_zero(xb.dy @ R, scale) and _is_zero(xb.dy @ S, scale)):
+        raise NetlistError(
+            "the circuit needs second derivatives of its variables (higher index); not supported",
+            netlist.elements[0].loc,
+        )
+    mass = _clean(xb.dx + xb.dy @ P + xb.y @ R)
+    n0 = _clean(xb.x + xb.y @ P)
+    nu = _clean(xb.u + xb.y @ Q)
+    nud = _clean(xb.du + xb.dy @ Q + xb.y @ S)
+    mass_msg = (
+        "the capacitance/inductance matrix is singular for these values: the states are not "
+        "independent" + (f" (check {', '.join(involved)})" if involved else " (check negative values)")
+    )
+    solved_x = -_solve(mass, sp.hstack([n0, nu, nud], format="csr"), mass_msg)
+    A = _clean(solved_x[:, :nx_])
+    B = _clean(solved_x[:, nx_ : nx_ + m])
+    K = _clean(solved_x[:, nx_ + m :])
+
+    C, D, D1 = _outputs(probes, netlist, circuit, tree, equations, classes, (P, Q, R, S), (A, B, K), m)
+
+    # From x to the shifted state z = x − K u: z' = A z + (B + A K) u, y = C z + (D + C K) u + D1 u'.
+    B_z = _clean(B + A @ K)
+    D_z = _clean(D + C @ K)
+
+    # Capacitor voltages → charges: q = C v.
+    scale_vec = np.array(
+        [circuit.branches[k].element.value if circuit.branches[k].element.kind is Kind.CAPACITOR else 1.0
+         for k in classes.x]
+    )
+    T = sp.diags_array(scale_vec)
+    T_inv = sp.diags_array(1.0 / scale_vec) if nx_ else sp.csr_array((0, 0))
+    A_q = _clean(T @ A @ T_inv)
+    B_q = _clean(T @ B_z)
+    C_q = _clean(C @ T_inv)
+    K_q = _clean(T @ K)
+
+    states = tuple(state_name(circuit.branches[k].element) for k in classes.x)
+    inputs = tuple(e.name for e in netlist.sources)
+    info = CompileInfo(
+        order=nx_,
+        tree=tuple(b.label for b in circuit.branches if tree.in_tree[b.index]),
+        excess=_excess(circuit, tree, classes),
+        shifts=_shifts(K_q, states, inputs),
+        warnings=netlist.warnings,
+    )
+    return StateSpaceModel(
+        sp.csr_array(A_q), sp.csr_array(B_q), sp.csr_array(C_q), sp.csr_array(D_z),
+        sp.csr_array(D1), states, inputs, tuple(p.name for p in probes), netlist.title, info,
+    )
+
+
+def _outputs(
+    probes: Sequence[Probe],
+    netlist: Netlist,
+    circuit: CircuitGraph,
+    tree: TreeSplit,
+    equations: _Equations,
+    classes: Classes,
+    y_solution: tuple[sp.csr_array, ...],
+    state_solution: tuple[sp.csr_array, ...],
+    m: int,
+) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
+    """C, D, D1 in the unshifted voltage/current states x (see reduce_to_state_space)."""
+    P, Q, R, S = y_solution
+    A, B, K = state_solution
+    n = circuit.nbranches
+    rows = []
+    for probe in probes:
+        if probe.kind == "v":
+            rows.append(_potential_rows(tree, [probe.nodes], n))
+        else:
+            branch = next(b for b in circuit.branches if b.element.key == probe.element)
+            rows.append(sp.csr_array(equations.imap[[branch.index], :]))
+    if not rows:
+        empty = sp.csr_array((0, len(classes.x)))
+        return empty, sp.csr_array((0, m)), sp.csr_array((0, m))
+    c_w = sp.vstack(rows, format="csr")
+    zeros_e = sp.csr_array(c_w.shape)
+    block = _eliminate_sources_and_excess(c_w, zeros_e, sp.csr_array((len(probes), m)), equations, classes, m)
+    c_x = block.x + block.y @ P
+    c_dx = block.dx + block.y @ R
+    c_u = block.u + block.y @ Q
+    c_du = block.du + block.y @ S
+    if block.dy.nnz:
+        if not (_is_zero(block.dy @ R, 1.0) and _is_zero(block.dy @ S, 1.0)):
+            raise UsageError("an output needs second derivatives of the circuit variables; not supported")
+        c_dx = c_dx + block.dy @ P
+        c_du = c_du + block.dy @ Q
+    C = _clean(c_x + c_dx @ A)
+    D = _clean(c_u + c_dx @ B)
+    D1 = _clean(c_du + c_dx @ K)
+    return C, D, D1
+
+
+def state_name(element: Element) -> str:
+    """Name of the state an element carries: ``q(C1)`` or ``i(L1)``."""
+    return f"q({element.name})" if element.kind is Kind.CAPACITOR else f"i({element.name})"
+
+
+def _controlled_labels(netlist: Netlist) -> list[str]:
+    return [
+        e.label for e in netlist.elements
+        if e.kind in (Kind.VCVS, Kind.VCCS, Kind.CCCS, Kind.CCVS, Kind.TRANSFORMER)
+    ]
+
+
+def _excess(circuit: CircuitGraph, tree: TreeSplit, classes: Classes) -> tuple[ExcessElement, ...]:
+    out = []
+    for k in classes.d:
+        branch = circuit.branches[k]
+        if branch.element.kind is Kind.CAPACITOR:
+            members = tuple(circuit.branches[t].label for t in tree.loop_members(int(k)))
+            out.append(ExcessElement(branch.label, "capacitor loop", members))
+        else:
+            members = tuple(circuit.branches[t].label for t in tree.cutset_members(int(k)))
+            out.append(ExcessElement(branch.label, "inductor cutset", members))
+    return tuple(out)
+
+
+def _shifts(K: sp.csr_array, states: tuple[str, ...], inputs: tuple[str, ...]) -> tuple[StateShift, ...]:
+    out = []
+    dense = K.toarray() if K.nnz else None
+    if dense is None:
+        return ()
+    for i, name in enumerate(states):
+        coeffs = tuple((inputs[j], float(dense[i, j])) for j in range(len(inputs)) if dense[i, j] != 0)
+        if coeffs:
+            out.append(StateShift(name, coeffs))
+    return tuple(out)
+
+
+__all__ = ["Role", "compile_netlist"]

@@ -1,0 +1,211 @@
+"""The compiled state-space model and what the compiler learned on the way.
+
+``x' = A x + B u``, ``y = C x + D u + D1 u'`` with named states, inputs and
+outputs. Matrices are stored sparse (``A_sparse`` ...) and offered dense and
+read-only as ``A``, ``B``, ``C``, ``D``, ``D1`` — python-control's names,
+with ``nstates``, ``ninputs``, ``noutputs``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import ControlDimension
+from .netlist import Diagnostic
+
+
+@dataclass(frozen=True, slots=True)
+class ExcessElement:
+    """A capacitor or inductor that is not a state, and why.
+
+    Attributes
+    ----------
+    element : str
+        Its label.
+    reason : str
+        ``"capacitor loop"`` (closes a loop of capacitors and voltage-type
+        branches) or ``"inductor cutset"`` (lies in a cutset of inductors and
+        current-type branches).
+    members : tuple of str
+        The other elements of that loop or cutset.
+    """
+
+    element: str
+    reason: str
+    members: tuple[str, ...]
+
+    def describe(self) -> str:
+        """One sentence for the report."""
+        kind = "loop" if self.reason == "capacitor loop" else "cutset"
+        what = (
+            "capacitors and voltage sources" if kind == "loop" else "inductors and current sources"
+        )
+        return (
+            f"{self.element} is not a state: it closes a {kind} of {what} with "
+            f"{', '.join(self.members)}"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class StateShift:
+    """A state redefined to remove an input derivative from its equation.
+
+    The state named ``state`` stands for ``state − Σ coefficients[u] · u``.
+    """
+
+    state: str
+    coefficients: tuple[tuple[str, float], ...]
+
+    def describe(self) -> str:
+        """One sentence for the report."""
+        terms = " ".join(
+            f"{'-' if c > 0 else '+'} {abs(c):.6g}·{u}" for u, c in self.coefficients
+        )
+        return (
+            f"state {self.state} stands for {self.state} {terms} "
+            "(this change of variable removes the input derivative from its equation)"
+        )
+
+
+@dataclass(frozen=True)
+class CompileInfo:
+    """Diagnostics of the compilation.
+
+    Attributes
+    ----------
+    order : int
+        Order of complexity (number of independent capacitor charges and
+        inductor currents) = number of states.
+    tree : tuple of str
+        Branches of the normal tree.
+    excess : tuple of ExcessElement
+        Capacitors and inductors that are not states.
+    shifts : tuple of StateShift
+        States redefined to absorb input derivatives.
+    warnings : tuple of Diagnostic
+        Warnings from parsing and compiling.
+    """
+
+    order: int
+    tree: tuple[str, ...] = ()
+    excess: tuple[ExcessElement, ...] = ()
+    shifts: tuple[StateShift, ...] = ()
+    warnings: tuple[Diagnostic, ...] = ()
+
+
+def _readonly(matrix: sp.sparray) -> np.ndarray:
+    dense = np.asarray(matrix.toarray(), dtype=float)
+    dense.setflags(write=False)
+    return dense
+
+
+@dataclass(frozen=True)
+class StateSpaceModel:
+    """A linear time-invariant model with labels.
+
+    Attributes
+    ----------
+    A_sparse, B_sparse, C_sparse, D_sparse, D1_sparse : scipy.sparse.csr_array
+        The matrices; units follow the states (charges in C, currents in A)
+        and the inputs (V or A).
+    states, inputs, outputs : tuple of str
+        Labels, in matrix order.
+    title : str
+        Netlist title.
+    info : CompileInfo
+        What the compiler found.
+    """
+
+    A_sparse: sp.csr_array
+    B_sparse: sp.csr_array
+    C_sparse: sp.csr_array
+    D_sparse: sp.csr_array
+    D1_sparse: sp.csr_array
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    title: str = ""
+    info: CompileInfo = field(default_factory=lambda: CompileInfo(order=0))
+
+    def __post_init__(self) -> None:
+        n, m, p = len(self.states), len(self.inputs), len(self.outputs)
+        expected = {
+            "A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "D1": (p, m),
+        }
+        for name, shape in expected.items():
+            actual = getattr(self, f"{name}_sparse").shape
+            if tuple(actual) != shape:
+                raise ControlDimension(
+                    f"{name} has shape {tuple(actual)}, expected {shape} "
+                    f"for {n} states, {m} inputs, {p} outputs"
+                )
+
+    @property
+    def nstates(self) -> int:
+        """Number of states."""
+        return len(self.states)
+
+    @property
+    def ninputs(self) -> int:
+        """Number of inputs."""
+        return len(self.inputs)
+
+    @property
+    def noutputs(self) -> int:
+        """Number of outputs."""
+        return len(self.outputs)
+
+    @cached_property
+    def A(self) -> np.ndarray:
+        """State matrix, dense and read-only."""
+        return _readonly(self.A_sparse)
+
+    @cached_property
+    def B(self) -> np.ndarray:
+        """Input matrix, dense and read-only."""
+        return _readonly(self.B_sparse)
+
+    @cached_property
+    def C(self) -> np.ndarray:
+        """Output matrix, dense and read-only."""
+        return _readonly(self.C_sparse)
+
+    @cached_property
+    def D(self) -> np.ndarray:
+        """Feedthrough matrix, dense and read-only."""
+        return _readonly(self.D_sparse)
+
+    @cached_property
+    def D1(self) -> np.ndarray:
+        """Feedthrough of input derivatives (y gets D1 u'), dense and read-only."""
+        return _readonly(self.D1_sparse)
+
+    @property
+    def has_input_derivative(self) -> bool:
+        """True when some output depends on an input's derivative."""
+        return self.D1_sparse.count_nonzero() > 0
+
+    def transfer_function(self, s: complex) -> np.ndarray:
+        """Evaluate G(s) = C (sI − A)⁻¹ B + D + s D1 at one complex frequency.
+
+        Parameters
+        ----------
+        s : complex
+            Laplace variable (rad/s).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(noutputs, ninputs)`` complex matrix.
+        """
+        n = self.nstates
+        if n:
+            resolvent = np.linalg.solve(s * np.eye(n) - self.A, self.B)
+            g = self.C @ resolvent
+        else:
+            g = np.zeros((self.noutputs, self.ninputs), dtype=complex)
+        return g + self.D + s * self.D1

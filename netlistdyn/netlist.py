@@ -1,0 +1,163 @@
+"""Typed, immutable records for a parsed netlist.
+
+The parser produces a :class:`Netlist`; every later stage reads it and none
+changes it. Names keep the user's spelling for messages; ``key`` is the
+case-folded name used for look-ups (SPICE is case-insensitive).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+from .errors import SourceLocation
+from .waveforms import Waveform
+
+GROUND = "0"
+
+
+class Kind(enum.Enum):
+    """Element classes, named by their SPICE letter where they have one."""
+
+    RESISTOR = "R"
+    CAPACITOR = "C"
+    INDUCTOR = "L"
+    VSOURCE = "V"
+    ISOURCE = "I"
+    VCVS = "E"
+    VCCS = "G"
+    CCCS = "F"
+    CCVS = "H"
+    COUPLING = "K"
+    TRANSFORMER = "TRANSFORMER"  # ideal two-port: gears and (mobility analogy) motors
+
+
+@dataclass(frozen=True, slots=True)
+class Element:
+    """One netlist element.
+
+    Attributes
+    ----------
+    kind : Kind
+        Element class.
+    name : str
+        Name as written in the netlist (``R1``, ``MASS m1`` → ``m1``).
+    nodes : tuple of str
+        Canonical node names, ``(n+, n-)``; four for a transformer
+        ``(p1+, p1-, p2+, p2-)``; empty for a coupling.
+    value : float
+        Resistance (Ω), capacitance (F), inductance (H), gain (V/V, A/V,
+        A/A, V/A), coupling coefficient, transformer ratio, or a source's DC
+        value (V or A).
+    loc : SourceLocation
+        Where it was defined.
+    control_nodes : tuple of str, optional
+        Controlling node pair of an E or G source.
+    control_source : str, optional
+        Key of the voltage source whose current controls an F or H source.
+    coupled : tuple of str, optional
+        Keys of the two inductors a K element couples.
+    waveform : Waveform, optional
+        Transient waveform of an independent source (``None``: DC value).
+    keyword : str, optional
+        Mechanical keyword (``MASS``, ``SPRING``...) the element came from.
+    """
+
+    kind: Kind
+    name: str
+    nodes: tuple[str, ...]
+    value: float
+    loc: SourceLocation
+    control_nodes: tuple[str, str] | None = None
+    control_source: str | None = None
+    coupled: tuple[str, str] | None = None
+    waveform: Waveform | None = None
+    keyword: str | None = None
+
+    @property
+    def key(self) -> str:
+        """Case-folded name for look-ups."""
+        return self.name.lower()
+
+    @property
+    def label(self) -> str:
+        """How messages refer to the element: ``R1`` or ``SPRING k1``."""
+        return f"{self.keyword} {self.name}" if self.keyword else self.name
+
+    @property
+    def is_source(self) -> bool:
+        """True for independent sources (the model's inputs)."""
+        return self.kind in (Kind.VSOURCE, Kind.ISOURCE)
+
+
+@dataclass(frozen=True, slots=True)
+class TranSpec:
+    """A ``.tran TSTEP TSTOP [TSTART [TMAX]]`` directive (s)."""
+
+    tstep: float
+    tstop: float
+    tstart: float = 0.0
+    tmax: float | None = None
+    loc: SourceLocation | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnostic:
+    """A warning tied to a place in the netlist."""
+
+    loc: SourceLocation
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.loc}: warning: {self.message}"
+
+
+@dataclass(frozen=True, slots=True)
+class Netlist:
+    """A parsed, flattened, fully evaluated netlist.
+
+    Attributes
+    ----------
+    title : str
+        First line of the file.
+    path : str
+        File it was read from.
+    elements : tuple of Element
+        In file order.
+    params : dict
+        Final parameter values (lower-case names).
+    tran : TranSpec, optional
+        The ``.tran`` directive, if any.
+    warnings : tuple of Diagnostic
+        Things the user should know that did not stop compilation.
+    """
+
+    title: str
+    path: str
+    elements: tuple[Element, ...]
+    params: dict[str, float] = field(default_factory=dict)
+    tran: TranSpec | None = None
+    warnings: tuple[Diagnostic, ...] = ()
+
+    def element(self, key: str) -> Element:
+        """The element with this (case-insensitive) name."""
+        lowered = key.lower()
+        for elem in self.elements:
+            if elem.key == lowered:
+                return elem
+        raise KeyError(key)
+
+    @property
+    def sources(self) -> tuple[Element, ...]:
+        """Independent sources in file order: the model's inputs."""
+        return tuple(e for e in self.elements if e.is_source)
+
+    @property
+    def nodes(self) -> tuple[str, ...]:
+        """Node names in order of first appearance, ground excluded."""
+        seen: dict[str, None] = {}
+        for elem in self.elements:
+            for node in elem.nodes:
+                if node != GROUND:
+                    seen.setdefault(node, None)
+        return tuple(seen)

@@ -1,0 +1,174 @@
+"""Rendering a compiled model and its analysis: text for people, JSON for programs.
+
+Renderers are pure functions returning strings; the CLI decides where they go.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from .analysis import EigenAnalysis
+from .model import StateSpaceModel
+
+#: Largest model whose matrices are printed in text and written as nested lists in JSON.
+DENSE_OUTPUT_LIMIT = 2000
+#: Largest matrix dimension printed in the text report.
+TEXT_MATRIX_LIMIT = 16
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _matrix_json(matrix: sp.sparray, dense_ok: bool) -> Any:
+    if dense_ok:
+        return matrix.toarray().tolist()
+    coo = sp.coo_array(matrix)
+    return {
+        "format": "coo",
+        "shape": list(coo.shape),
+        "row": coo.row.tolist(),
+        "col": coo.col.tolist(),
+        "data": coo.data.tolist(),
+    }
+
+
+def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, Any]:
+    """The JSON document for ``analyze --format json``.
+
+    Matrices are nested lists of rows up to :data:`DENSE_OUTPUT_LIMIT`
+    states, and COO triplets (``{"format": "coo", ...}``) above it.
+    """
+    dense_ok = model.nstates <= DENSE_OUTPUT_LIMIT
+    doc: dict[str, Any] = {
+        "title": model.title,
+        "states": list(model.states),
+        "inputs": list(model.inputs),
+        "outputs": list(model.outputs),
+        "nstates": model.nstates,
+        "ninputs": model.ninputs,
+        "noutputs": model.noutputs,
+        "A": _matrix_json(model.A_sparse, dense_ok),
+        "B": _matrix_json(model.B_sparse, dense_ok),
+        "C": _matrix_json(model.C_sparse, dense_ok),
+        "D": _matrix_json(model.D_sparse, True),
+    }
+    if model.has_input_derivative:
+        doc["D1"] = _matrix_json(model.D1_sparse, True)
+    info = model.info
+    doc["order"] = info.order
+    doc["excess_elements"] = [
+        {"element": e.element, "reason": e.reason, "members": list(e.members)} for e in info.excess
+    ]
+    doc["state_shifts"] = {s.state: dict(s.coefficients) for s in info.shifts}
+    if eig is not None:
+        doc["eigenvalues"] = [[m.value.real, m.value.imag] for m in eig.modes]
+        doc["modes"] = [
+            {
+                "re": m.value.real,
+                "im": m.value.imag,
+                "natural_frequency": m.natural_frequency,
+                "damping": _finite(m.damping),
+                "time_constant": _finite(m.time_constant),
+                "rel_error": _finite(m.rel_error),
+            }
+            for m in eig.modes
+        ]
+        doc["eigenvalues_complete"] = eig.complete
+        doc["eigen_method"] = eig.method
+        doc["stability"] = eig.verdict
+        doc["stiffness_ratio"] = eig.stiffness_ratio
+    doc["warnings"] = [str(w) for w in info.warnings] + (list(eig.warnings) if eig else [])
+    return doc
+
+
+def to_json(doc: dict[str, Any]) -> str:
+    """Serialise with non-finite numbers as null (JSON has no inf/nan)."""
+
+    def clean(obj: Any) -> Any:
+        if isinstance(obj, float):
+            return obj if math.isfinite(obj) else None
+        if isinstance(obj, dict):
+            return {k: clean(v) for k, v in obj.items()}
+        if isinstance(obj, list | tuple):
+            return [clean(v) for v in obj]
+        return obj
+
+    body = ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in clean(doc).items())
+    return "{\n" + body + "\n}\n"
+
+
+def format_matrix(
+    name: str, matrix: np.ndarray, rows: Sequence[str], cols: Sequence[str]
+) -> list[str]:
+    """A labelled matrix as text lines."""
+    if matrix.size == 0:
+        return [f"{name} = [] ({matrix.shape[0]}x{matrix.shape[1]})"]
+    cells = [[f"{v:.6g}" for v in row] for row in matrix]
+    width = max(12, *(len(c) + 2 for c in cols), *(len(x) + 2 for row in cells for x in row))
+    head = max(len(r) for r in rows) + 2
+    lines = [f"{name} ="]
+    lines.append(" " * head + "".join(c.rjust(width) for c in cols))
+    for label, row in zip(rows, cells, strict=True):
+        lines.append(("  " + label).ljust(head) + "".join(x.rjust(width) for x in row))
+    return lines
+
+
+def _unit_of_state(name: str) -> str:
+    return {"q": "C", "i": "A"}.get(name.split("(", 1)[0], "")
+
+
+def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) -> str:
+    """The human-readable ``analyze`` report."""
+    out = [f"{model.title}", f"netlist: {path}", ""]
+    out.append(
+        f"states ({model.nstates}): "
+        + (", ".join(f"{s} [{_unit_of_state(s)}]" for s in model.states) or "none")
+    )
+    out.append(f"inputs ({model.ninputs}): " + (", ".join(model.inputs) or "none"))
+    out.append(f"outputs ({model.noutputs}): " + (", ".join(model.outputs) or "none"))
+    out.append(f"order of complexity: {model.info.order}")
+    for excess in model.info.excess:
+        out.append(f"  note: {excess.describe()}")
+    for shift in model.info.shifts:
+        out.append(f"  note: {shift.describe()}")
+    out.append("")
+    big = max(model.nstates, model.noutputs, model.ninputs) > TEXT_MATRIX_LIMIT
+    if big:
+        for name, mat in (("A", model.A_sparse), ("B", model.B_sparse), ("C", model.C_sparse),
+                          ("D", model.D_sparse)):
+            out.append(f"{name}: {mat.shape[0]}x{mat.shape[1]}, {mat.nnz} non-zeros "
+                       "(use --format json for the entries)")
+    else:
+        out += format_matrix("A", model.A, model.states, model.states)
+        out += format_matrix("B", model.B, model.states, model.inputs)
+        out += format_matrix("C", model.C, model.outputs, model.states)
+        out += format_matrix("D", model.D, model.outputs, model.inputs)
+        if model.has_input_derivative:
+            out += format_matrix("D1 (multiplies du/dt)", model.D1, model.outputs, model.inputs)
+    if eig is not None:
+        out.append("")
+        out.append(f"eigenvalues ({eig.method}):")
+        out.append(
+            f"  {'real':>14} {'imag':>14} {'wn [rad/s]':>12} {'damping':>9} {'tau [s]':>11} {'rel.err':>8}"
+        )
+        for m in eig.modes:
+            tau = f"{m.time_constant:.5g}" if math.isfinite(m.time_constant) else "inf"
+            zeta = f"{m.damping:.4g}" if math.isfinite(m.damping) else "-"
+            err = f"{m.rel_error:.0e}" if math.isfinite(m.rel_error) else "-"
+            re, im = m.value.real + 0.0, m.value.imag + 0.0  # no "-0" in the table
+            out.append(
+                f"  {re:>14.8g} {im:>14.8g} {m.natural_frequency:>12.6g} "
+                f"{zeta:>9} {tau:>11} {err:>8}"
+            )
+        stiff = f"{eig.stiffness_ratio:.4g}" if eig.stiffness_ratio is not None else "n/a"
+        out.append(f"stability: {eig.verdict}; stiffness ratio: {stiff}")
+        for warning in eig.warnings:
+            out.append(f"warning: {warning}")
+    return "\n".join(out) + "\n"

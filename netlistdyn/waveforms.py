@@ -1,0 +1,226 @@
+"""Independent-source waveforms as SPICE defines them (DC, PULSE, SIN, PWL, EXP).
+
+A waveform does not change the state-space matrices; it is kept with its
+source for simulation and validation. Parameters that SPICE leaves to the
+analysis (PULSE rise time defaults to TSTEP, ...) are stored as ``None`` and
+resolved with :meth:`Waveform.resolved` once ``tstep``/``tstop`` are known.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True, slots=True)
+class Dc:
+    """Constant value, applied as a step at t = 0 (V or A)."""
+
+    value: float
+
+    def resolved(self, tstep: float, tstop: float) -> Dc:
+        """Return the waveform with SPICE's analysis-dependent defaults filled in."""
+        return self
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        return np.full(np.shape(t), self.value, dtype=float)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """Times in [0, tstop] where the waveform or its slope jumps (s)."""
+        return ()
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """True when the waveform is linear between its breakpoints."""
+        return True
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        return f"DC {self.value!r}"
+
+
+@dataclass(frozen=True, slots=True)
+class Pulse:
+    """``PULSE(V1 V2 TD TR TF PW PER)``; times in s, levels in V or A."""
+
+    v1: float
+    v2: float
+    td: float = 0.0
+    tr: float | None = None
+    tf: float | None = None
+    pw: float | None = None
+    per: float | None = None
+
+    def resolved(self, tstep: float, tstop: float) -> Pulse:
+        """Fill TR, TF (default TSTEP), PW and PER (default TSTOP) as SPICE does."""
+        return replace(
+            self,
+            tr=self.tr if self.tr else tstep,
+            tf=self.tf if self.tf else tstep,
+            pw=self.pw if self.pw is not None else tstop,
+            per=self.per if self.per else tstop,
+        )
+
+    def _times(self) -> tuple[float, float, float, float]:
+        assert self.tr is not None and self.tf is not None
+        assert self.pw is not None and self.per is not None
+        return self.tr, self.tf, self.pw, self.per
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        tr, tf, pw, per = self._times()
+        tt = np.asarray(t, dtype=float) - self.td
+        local = np.where(tt > 0, np.mod(tt, per), tt)
+        out = np.full(local.shape, self.v1)
+        rise = (local > 0) & (local < tr)
+        out = np.where(rise, self.v1 + (self.v2 - self.v1) * local / tr, out)
+        high = (local >= tr) & (local <= tr + pw)
+        out = np.where(high, self.v2, out)
+        fall = (local > tr + pw) & (local < tr + pw + tf)
+        out = np.where(fall, self.v2 + (self.v1 - self.v2) * (local - tr - pw) / tf, out)
+        return out
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """Corners of the trapezoid in [0, tstop] (s)."""
+        tr, tf, pw, per = self._times()
+        points: list[float] = []
+        start = self.td
+        while start <= tstop and len(points) < 4_000_000:
+            for offset in (0.0, tr, tr + pw, tr + pw + tf):
+                if start + offset <= tstop:
+                    points.append(start + offset)
+            start += per
+        return tuple(points)
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """PULSE is piecewise linear."""
+        return True
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        tr, tf, pw, per = self._times()
+        return f"PULSE({self.v1!r} {self.v2!r} {self.td!r} {tr!r} {tf!r} {pw!r} {per!r})"
+
+
+@dataclass(frozen=True, slots=True)
+class Sin:
+    """``SIN(VO VA FREQ TD THETA PHASE)``: VO + VA e^(-θ(t-TD)) sin(2πf(t-TD) + φ).
+
+    FREQ in Hz, TD in s, THETA in 1/s, PHASE in degrees.
+    """
+
+    vo: float
+    va: float
+    freq: float | None = None
+    td: float = 0.0
+    theta: float = 0.0
+    phase: float = 0.0
+
+    def resolved(self, tstep: float, tstop: float) -> Sin:
+        """FREQ defaults to 1/TSTOP."""
+        return replace(self, freq=self.freq if self.freq else 1.0 / tstop)
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        assert self.freq is not None
+        tt = np.asarray(t, dtype=float)
+        phi = math.radians(self.phase)
+        shifted = np.maximum(tt - self.td, 0.0)
+        wave = self.vo + self.va * np.exp(-self.theta * shifted) * np.sin(
+            2 * math.pi * self.freq * shifted + phi
+        )
+        return np.where(tt < self.td, self.vo + self.va * math.sin(phi), wave)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """The start of the oscillation, if inside the horizon (s)."""
+        return (self.td,) if 0 < self.td <= tstop else ()
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """A sine is smooth, not piecewise linear."""
+        return False
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        return (
+            f"SIN({self.vo!r} {self.va!r} {self.freq!r} {self.td!r} {self.theta!r} {self.phase!r})"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Pwl:
+    """``PWL(T1 V1 T2 V2 ...)``: linear interpolation, held after the last point."""
+
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def resolved(self, tstep: float, tstop: float) -> Pwl:
+        """PWL has no analysis-dependent defaults."""
+        return self
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        return np.interp(np.asarray(t, dtype=float), self.times, self.values)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """The corner times in [0, tstop] (s)."""
+        return tuple(x for x in self.times if 0 <= x <= tstop)
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """PWL is piecewise linear."""
+        return True
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        pairs = " ".join(f"{t!r} {v!r}" for t, v in zip(self.times, self.values, strict=True))
+        return f"PWL({pairs})"
+
+
+@dataclass(frozen=True, slots=True)
+class Exp:
+    """``EXP(V1 V2 TD1 TAU1 TD2 TAU2)``: exponential rise at TD1, fall at TD2 (s)."""
+
+    v1: float
+    v2: float
+    td1: float = 0.0
+    tau1: float | None = None
+    td2: float | None = None
+    tau2: float | None = None
+
+    def resolved(self, tstep: float, tstop: float) -> Exp:
+        """TAU1, TAU2 default to TSTEP and TD2 to TD1 + TSTEP, as in SPICE."""
+        return replace(
+            self,
+            tau1=self.tau1 if self.tau1 else tstep,
+            td2=self.td2 if self.td2 else self.td1 + tstep,
+            tau2=self.tau2 if self.tau2 else tstep,
+        )
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        assert self.tau1 is not None and self.td2 is not None and self.tau2 is not None
+        tt = np.asarray(t, dtype=float)
+        dv = self.v2 - self.v1
+        rise = dv * (1.0 - np.exp(-np.maximum(tt - self.td1, 0.0) / self.tau1))
+        fall = -dv * (1.0 - np.exp(-np.maximum(tt - self.td2, 0.0) / self.tau2))
+        return self.v1 + rise + np.where(tt > self.td2, fall, 0.0)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """The two delay times, where inside the horizon (s)."""
+        assert self.td2 is not None
+        return tuple(x for x in (self.td1, self.td2) if 0 < x <= tstop)
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """Exponentials are smooth, not piecewise linear."""
+        return False
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        return (
+            f"EXP({self.v1!r} {self.v2!r} {self.td1!r} {self.tau1!r} {self.td2!r} {self.tau2!r})"
+        )
+
+
+Waveform = Dc | Pulse | Sin | Pwl | Exp
