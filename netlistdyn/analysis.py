@@ -35,13 +35,22 @@ class Mode:
     Attributes
     ----------
     value : complex
-        Eigenvalue λ (1/s).
-    rel_error : float
-        Estimated relative error of λ (condition number × unit roundoff × norm).
+        Eigenvalue λ (1/s). A real or imaginary part smaller than
+        ``abs_error`` is reported as exactly zero.
+    abs_error : float
+        Estimated absolute error of λ (1/s): componentwise backward error of
+        its residual × componentwise condition number (``_error_estimates``);
+        NaN when not estimated (sparse eigensolver).
     """
 
     value: complex
-    rel_error: float
+    abs_error: float
+
+    @property
+    def rel_error(self) -> float:
+        """Estimated relative error |δλ|/|λ| (∞ for λ = 0)."""
+        mag = abs(self.value)
+        return self.abs_error / mag if mag else math.inf
 
     @property
     def natural_frequency(self) -> float:
@@ -94,23 +103,44 @@ class EigenAnalysis:
     warnings: tuple[str, ...] = ()
 
 
-def _eig_with_condition(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues and absolute error bounds eps·‖A‖·κ(λ) (LAPACK geev, balanced)."""
+def _eig(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eigenvalues with left and right eigenvectors (LAPACK geev, balanced)."""
     w, vl, vr = sla.eig(a, left=True, right=True)
-    norm = np.linalg.norm(a, 2) if a.shape[0] <= 500 else np.linalg.norm(a, "fro")
-    s = np.abs(np.einsum("ij,ij->j", vl.conj(), vr))
-    s = s / (np.linalg.norm(vl, axis=0) * np.linalg.norm(vr, axis=0))
-    with np.errstate(divide="ignore"):
-        bound = np.where(s > 0, EPS * norm / s, np.inf)
-    return w, bound
+    return w, vl, vr
+
+
+def _error_estimates(a: np.ndarray, w: np.ndarray, vl: np.ndarray, vr: np.ndarray) -> np.ndarray:
+    """Absolute error estimate of each eigenvalue of ``a``, measured against ``a`` itself.
+
+    Each entry of A comes from element values, so relative perturbations of
+    the entries are the meaningful ones. Where the computed pair has a small
+    componentwise (Oettli–Prager) backward error η = maxᵢ |A x − λ x|ᵢ /
+    (|A||x| + |λ||x|)ᵢ, the estimate is max(η, eps) times the componentwise
+    condition number |y|ᵀ|A||x| / |yᴴx|. Otherwise it falls back to the
+    normwise estimate max(‖r‖/(‖A‖‖x‖), eps) · ‖A‖ / s with
+    s = |yᴴx| / (‖y‖‖x‖). Never below eps·|λ|.
+    """
+    abs_a = np.abs(a)
+    residual = a @ vr - vr * w
+    abs_x = np.abs(vr)
+    denom = abs_a @ abs_x + np.abs(w) * abs_x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(denom > 0, np.abs(residual) / denom, np.where(residual == 0, 0.0, np.inf))
+        eta_cw = np.max(ratio, axis=0)
+        overlap = np.abs(np.einsum("ij,ij->j", vl.conj(), vr))
+        cond_cw = np.einsum("ij,ij->j", np.abs(vl), abs_a @ abs_x) / overlap
+        norm_a = np.linalg.norm(a, 2) if a.shape[0] <= 500 else np.linalg.norm(a, "fro")
+        x_norm = np.linalg.norm(vr, axis=0)
+        s = overlap / (np.linalg.norm(vl, axis=0) * x_norm)
+        eta_nw = np.linalg.norm(residual, axis=0) / (norm_a * x_norm)
+        normwise = np.maximum(eta_nw, EPS) * norm_a / s
+        componentwise = np.maximum(eta_cw, EPS) * cond_cw
+        estimate = np.where(eta_cw <= 1e-10, componentwise, normwise)
+        return np.maximum(estimate, EPS * np.abs(w))
 
 
 def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:
-    """A⁻¹ when it exists with a small backward error, else None.
-
-    Accepted when ‖A·X − I‖ ≤ 1e-10 ‖A‖ ‖X‖ (1-norms), i.e. X is the exact
-    inverse of a matrix within 1e-10 of A, relatively.
-    """
+    """A⁻¹ when LAPACK can form it with a small backward error, else None."""
     n = a.shape[0]
     if n == 0:
         return None
@@ -127,26 +157,32 @@ def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:
 
 
 def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
-    n = a.shape[0]
-    w, bound = _eig_with_condition(a)
-    rel = np.where(np.abs(w) > 0, bound / np.maximum(np.abs(w), 1e-300), np.inf)
+    w, vl, vr = _eig(a)
     method = "LAPACK geev (balanced QR) on A"
     inv = _accurate_inverse(a)
     if inv is not None and np.linalg.cond(a) > 1e4:
-        mu, bound_inv = _eig_with_condition(inv)
+        # Small eigenvalues from A carry an absolute error of about eps·‖A‖; from A⁻¹
+        # they come out without that cancellation. Keep the large ones from A and the
+        # small ones from A⁻¹ (same eigenvectors), split at the geometric middle.
+        mu, ul, ur = _eig(inv)
         with np.errstate(divide="ignore", invalid="ignore"):
-            lam_inv = 1.0 / mu  # μ = 0 (unresolved tiny μ) gives ∞ and is never kept
-            rel_inv = bound_inv / np.abs(mu)
+            lam_inv = 1.0 / mu  # μ = 0 (unresolved) gives ∞ and is never kept
         order_a = np.argsort(-np.abs(w))
         order_i = np.argsort(-np.abs(lam_inv))
-        # Split the spectrum where the two estimates are equally good: keep the large
-        # eigenvalues from A and the small ones from A⁻¹ (no cancellation either way).
         split = math.sqrt(np.linalg.norm(a, 2) / np.linalg.norm(inv, 2))
         k = int(np.sum(np.abs(w) >= split))
-        w = np.concatenate([w[order_a[:k]], lam_inv[order_i[k:]]])
-        rel = np.concatenate([rel[order_a[:k]], rel_inv[order_i[k:]]])
+        take_a, take_i = order_a[:k], order_i[k:]
+        w = np.concatenate([w[take_a], lam_inv[take_i]])
+        vl = np.concatenate([vl[:, take_a], ul[:, take_i]], axis=1)
+        vr = np.concatenate([vr[:, take_a], ur[:, take_i]], axis=1)
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"
-    return [Mode(complex(v), float(e)) for v, e in zip(w, rel, strict=True)], method
+    abs_err = _error_estimates(a, w, vl, vr)
+    abs_err = np.where(np.isfinite(abs_err), abs_err, np.inf)
+    # Parts below their own error estimate are zero as far as the data can tell.
+    re = np.where(np.abs(w.real) <= abs_err, 0.0, w.real)
+    im = np.where(np.abs(w.imag) <= abs_err, 0.0, w.imag)
+    modes = [Mode(complex(r, i), float(e)) for r, i, e in zip(re, im, abs_err, strict=True)]
+    return modes, method
 
 
 def _sparse_modes(a: sp.sparray) -> tuple[list[Mode], str]:
@@ -165,8 +201,10 @@ def _verdict(modes: list[Mode], a_norm: float, complete: bool, a: np.ndarray | N
         return "undetermined"
     if not modes:
         return "asymptotically stable"
-    tol = [max(abs(m.value) * (m.rel_error if math.isfinite(m.rel_error) else 1.0),
-               100 * EPS * abs(m.value)) for m in modes]
+    tol = [
+        max(abs(m.value) * (m.rel_error if math.isfinite(m.rel_error) else 1.0), 100 * EPS * abs(m.value))
+        for m in modes
+    ]
     unstable = any(m.value.real > t for m, t in zip(modes, tol, strict=True))
     if unstable:
         return "unstable"
@@ -216,10 +254,12 @@ def analyze_eigenvalues(a: sp.sparray | np.ndarray, which: str = "auto") -> Eige
     stiffness = max(decaying) / min(decaying) if decaying and complete else None
     warnings = tuple(
         f"eigenvalue {m.value:.6g} may be inaccurate: estimated relative error {m.rel_error:.1e} "
-        "(eps·‖A‖ × eigenvalue condition number)"
-        for m in modes if math.isfinite(m.rel_error) and m.rel_error > TRUST_RTOL
+        "(residual backward error × componentwise condition number)"
+        for m in modes
+        if math.isfinite(m.rel_error) and m.rel_error > TRUST_RTOL
     ) + tuple(
         f"eigenvalue {m.value:.6g} is defective or ill-conditioned (no error estimate)"
-        for m in modes if complete and not math.isfinite(m.rel_error) and m.value != 0
+        for m in modes
+        if complete and not math.isfinite(m.rel_error) and m.value != 0
     )
     return EigenAnalysis(tuple(modes), verdict, stiffness, method, complete, warnings)

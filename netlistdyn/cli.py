@@ -70,7 +70,7 @@ def run_guarded(action: Callable[[], int | None]) -> None:
     except OSError as exc:
         click.echo(f"netlistdyn: error: {exc.filename or ''}: {exc.strerror or exc}", err=True)
         sys.exit(EXIT_USAGE)
-    except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
+    except Exception as exc:
         if os.environ.get("NETLISTDYN_DEBUG"):
             raise
         click.echo(f"netlistdyn: internal error: {type(exc).__name__}: {exc} (please report)", err=True)
@@ -90,18 +90,31 @@ def main() -> None:
 
 
 output_option = click.option(
-    "--output", "outputs", multiple=True, metavar="SPEC",
+    "--output",
+    "outputs",
+    multiple=True,
+    metavar="SPEC",
     help="Output: v(node), v(a,b) or i(element). Repeatable. Default: every node voltage.",
 )
 param_option = click.option(
-    "--param", "params", multiple=True, metavar="NAME=VALUE",
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
     help="Override a .param for this run. Repeatable.",
 )
 format_option = click.option(
-    "--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
+    "--format",
+    "fmt",
+    type=click.Choice(["text", "json"]),
+    default="text",
+    show_default=True,
 )
 out_option = click.option(
-    "-o", "--out", type=click.Path(dir_okay=False, writable=True), default=None,
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
     help="Write the report to this file (atomically) instead of stdout.",
 )
 
@@ -112,7 +125,10 @@ out_option = click.option(
 @param_option
 @format_option
 @click.option(
-    "--eig", type=click.Choice(["auto", "all", "extreme", "none"]), default="auto", show_default=True,
+    "--eig",
+    type=click.Choice(["auto", "all", "extreme", "none"]),
+    default="auto",
+    show_default=True,
     help="Eigenvalues: all (dense), extreme (sparse, large models), auto by size, or none.",
 )
 @out_option

@@ -150,7 +150,7 @@ def _inductance_matrix(netlist: Netlist, circuit: CircuitGraph) -> sp.csr_array:
     """Branch inductance matrix (H): self inductances and mutual M = k√(L1 L2)."""
     index = {b.element.key: b.index for b in circuit.branches if b.element.kind is Kind.INDUCTOR}
     rows, cols, vals = [], [], []
-    for key, k in index.items():
+    for _key, k in index.items():
         rows.append(k)
         cols.append(k)
         vals.append(circuit.branches[k].element.value)
@@ -305,9 +305,7 @@ def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classe
         else:
             y.append(k)
     as_array = lambda v: np.asarray(v, dtype=np.intp)  # noqa: E731
-    return Classes(
-        as_array(x_caps + x_inds), as_array(s), as_array(d), as_array(y), as_array(source_input)
-    )
+    return Classes(as_array(x_caps + x_inds), as_array(s), as_array(d), as_array(y), as_array(source_input))
 
 
 def _clean(matrix: sp.sparray) -> sp.csr_array:
@@ -361,9 +359,7 @@ def _eliminate_sources_and_excess(
         dx = dx - g_d @ _cols(e_d, classes.x)
         dy = dy - g_d @ _cols(e_d, classes.y)
         du = du - g_d @ (_cols(e_d, classes.s) @ unit)
-    return _Block(
-        _cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du)
-    )
+    return _Block(_cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du))
 
 
 def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
@@ -448,9 +444,8 @@ def reduce_to_state_space(
             f"({', '.join(involved) or 'check the controlled sources'}); not supported",
             netlist.elements[0].loc,
         )
-    resistive_msg = (
-        "the resistive part of the circuit has no unique solution for these values"
-        + (f" (check {', '.join(involved)})" if involved else " (check negative resistances)")
+    resistive_msg = "the resistive part of the circuit has no unique solution for these values" + (
+        f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
     )
     rhs = sp.hstack([yb.x, yb.dx, yb.u, yb.du], format="csr")
     solved = -_solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else sp.csr_array((0, rhs.shape[1]))
@@ -490,8 +485,10 @@ def reduce_to_state_space(
 
     # Capacitor voltages → charges: q = C v.
     scale_vec = np.array(
-        [circuit.branches[k].element.value if circuit.branches[k].element.kind is Kind.CAPACITOR else 1.0
-         for k in classes.x]
+        [
+            circuit.branches[k].element.value if circuit.branches[k].element.kind is Kind.CAPACITOR else 1.0
+            for k in classes.x
+        ]
     )
     T = sp.diags_array(scale_vec)
     T_inv = sp.diags_array(1.0 / scale_vec) if nx_ else sp.csr_array((0, 0))
@@ -510,8 +507,16 @@ def reduce_to_state_space(
         warnings=netlist.warnings,
     )
     return StateSpaceModel(
-        sp.csr_array(A_q), sp.csr_array(B_q), sp.csr_array(C_q), sp.csr_array(D_z),
-        sp.csr_array(D1), states, inputs, tuple(p.name for p in probes), netlist.title, info,
+        sp.csr_array(A_q),
+        sp.csr_array(B_q),
+        sp.csr_array(C_q),
+        sp.csr_array(D_z),
+        sp.csr_array(D1),
+        states,
+        inputs,
+        tuple(p.name for p in probes),
+        netlist.title,
+        info,
     )
 
 
@@ -565,7 +570,8 @@ def state_name(element: Element) -> str:
 
 def _controlled_labels(netlist: Netlist) -> list[str]:
     return [
-        e.label for e in netlist.elements
+        e.label
+        for e in netlist.elements
         if e.kind in (Kind.VCVS, Kind.VCCS, Kind.CCCS, Kind.CCVS, Kind.TRANSFORMER)
     ]
 

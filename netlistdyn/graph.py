@@ -240,16 +240,13 @@ def _check_grounded(netlist: Netlist, graph: nx.MultiGraph) -> None:
         return
     culprit = next(e for e in netlist.elements if any(n in floating for n in e.nodes))
     shown = ", ".join(floating[:5]) + (", ..." if len(floating) > 5 else "")
-    raise TopologyError(
-        f"{culprit.label}: node(s) {shown} have no path to ground (node 0)", culprit.loc
-    )
+    raise TopologyError(f"{culprit.label}: node(s) {shown} have no path to ground (node 0)", culprit.loc)
 
 
 def normal_tree(circuit: CircuitGraph) -> TreeSplit:
     """Choose a normal tree and build the fundamental loop matrix.
 
-    Kruskal's algorithm on the branch priorities (ties kept in netlist
-    order), then a breadth-first walk from ground for node potentials.
+    Kruskal's algorithm on the branch priorities, then a breadth-first walk from ground for node potentials.
 
     Parameters
     ----------
@@ -259,7 +256,13 @@ def normal_tree(circuit: CircuitGraph) -> TreeSplit:
     -------
     TreeSplit
     """
-    ordered = sorted(circuit.branches, key=lambda b: (b.role, b.index))
+    # Ties in netlist order, except inductors in reverse: the tree takes the *last*
+    # inductor of a cutset, so the first-listed one stays a link and a state — as the
+    # first-listed capacitor of a loop enters the tree and is the state.
+    ordered = sorted(
+        circuit.branches,
+        key=lambda b: (b.role, -b.index if b.role is Role.INDUCTOR else b.index),
+    )
     uf = nx.utils.UnionFind(circuit.nodes)
     in_tree = np.zeros(circuit.nbranches, dtype=bool)
     for branch in ordered:

@@ -41,13 +41,8 @@ class ExcessElement:
     def describe(self) -> str:
         """One sentence for the report."""
         kind = "loop" if self.reason == "capacitor loop" else "cutset"
-        what = (
-            "capacitors and voltage sources" if kind == "loop" else "inductors and current sources"
-        )
-        return (
-            f"{self.element} is not a state: it closes a {kind} of {what} with "
-            f"{', '.join(self.members)}"
-        )
+        what = "capacitors and voltage sources" if kind == "loop" else "inductors and current sources"
+        return f"{self.element} is not a state: it closes a {kind} of {what} with {', '.join(self.members)}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,9 +57,7 @@ class StateShift:
 
     def describe(self) -> str:
         """One sentence for the report."""
-        terms = " ".join(
-            f"{'-' if c > 0 else '+'} {abs(c):.6g}·{u}" for u, c in self.coefficients
-        )
+        terms = " ".join(f"{'-' if c > 0 else '+'} {abs(c):.6g}·{u}" for u, c in self.coefficients)
         return (
             f"state {self.state} stands for {self.state} {terms} "
             "(this change of variable removes the input derivative from its equation)"
@@ -134,7 +127,11 @@ class StateSpaceModel:
     def __post_init__(self) -> None:
         n, m, p = len(self.states), len(self.inputs), len(self.outputs)
         expected = {
-            "A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "D1": (p, m),
+            "A": (n, n),
+            "B": (n, m),
+            "C": (p, n),
+            "D": (p, m),
+            "D1": (p, m),
         }
         for name, shape in expected.items():
             actual = getattr(self, f"{name}_sparse").shape

@@ -13,6 +13,7 @@ The parser works in two passes: it first reads logical lines (following
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Iterator, Mapping
@@ -36,16 +37,52 @@ class Line:
 
 # Directives that do not change the model: accepted with a warning.
 IGNORED_DIRECTIVES = frozenset(
-    {".print", ".plot", ".options", ".option", ".opt", ".op", ".ac", ".dc", ".save",
-     ".probe", ".meas", ".measure", ".temp", ".width", ".four", ".noise", ".disto",
-     ".sens", ".tf", ".nodeset", ".ic", ".global", ".csparam", ".func", ".model", ".pz"}
+    {
+        ".print",
+        ".plot",
+        ".options",
+        ".option",
+        ".opt",
+        ".op",
+        ".ac",
+        ".dc",
+        ".save",
+        ".probe",
+        ".meas",
+        ".measure",
+        ".temp",
+        ".width",
+        ".four",
+        ".noise",
+        ".disto",
+        ".sens",
+        ".tf",
+        ".nodeset",
+        ".ic",
+        ".global",
+        ".csparam",
+        ".func",
+        ".model",
+        ".pz",
+    }
 )
 UNSUPPORTED_LETTERS = {
-    "d": "diode", "q": "bipolar transistor", "m": "MOSFET", "j": "JFET",
-    "z": "MESFET", "b": "behavioural source", "s": "voltage-controlled switch",
-    "w": "current-controlled switch", "t": "transmission line", "o": "lossy line",
-    "u": "distributed RC line", "a": "XSPICE code model", "y": "lossy line", "x": "subcircuit",
-    "p": "coupled lines", "n": "numerical device",
+    "d": "diode",
+    "q": "bipolar transistor",
+    "m": "MOSFET",
+    "j": "JFET",
+    "z": "MESFET",
+    "b": "behavioural source",
+    "s": "voltage-controlled switch",
+    "w": "current-controlled switch",
+    "t": "transmission line",
+    "o": "lossy line",
+    "u": "distributed RC line",
+    "a": "XSPICE code model",
+    "y": "lossy line",
+    "x": "subcircuit",
+    "p": "coupled lines",
+    "n": "numerical device",
 }
 SOURCE_FUNCTIONS = ("pulse", "sin", "pwl", "exp", "sffm", "am", "trnoise", "trrandom")
 
@@ -125,7 +162,7 @@ def _include(path: Path, line: Line, stack: tuple[Path, ...]) -> list[Line]:
     target = (path.parent / name).resolve()
     chain = (*stack, path.resolve())
     if target in chain:
-        cycle = " -> ".join(p.name for p in (*chain[chain.index(target):], target))
+        cycle = " -> ".join(p.name for p in (*chain[chain.index(target) :], target))
         raise NetlistError(f"include loop: {cycle}", line.loc)
     try:
         text = target.read_text()
@@ -191,16 +228,14 @@ def _param_assignments(line: Line) -> list[tuple[str, str]]:
     out = []
     for i, match in enumerate(starts):
         end = starts[i + 1].start() if i + 1 < len(starts) else len(text)
-        expr = text[match.end():end].strip().rstrip(",").strip()
+        expr = text[match.end() : end].strip().rstrip(",").strip()
         if not expr:
             raise NetlistError(f".param {match.group(1)}: missing value", line.loc)
         out.append((match.group(1).lower(), expr))
     return out
 
 
-def evaluate_params(
-    lines: list[Line], overrides: Mapping[str, float]
-) -> dict[str, float]:
+def evaluate_params(lines: list[Line], overrides: Mapping[str, float]) -> dict[str, float]:
     """Evaluate every ``.param`` in file order, applying overrides.
 
     Parameters
@@ -267,9 +302,7 @@ def _parse_waveform(
                 args.append(values.number(fields[j], loc, f"{name} {word.upper()}"))
                 j += 1
             if j < len(fields) and fields[j].lower() not in ("dc", "ac", *SOURCE_FUNCTIONS):
-                raise NetlistError(
-                    f"{name}: unsupported field {fields[j]!r} in {word.upper()}(...)", loc
-                )
+                raise NetlistError(f"{name}: unsupported field {fields[j]!r} in {word.upper()}(...)", loc)
             waveform = _make_waveform(word, args, loc, name)
             i = j
         elif values.is_value(fields[i]):
@@ -283,9 +316,7 @@ def _parse_waveform(
 def _make_waveform(kind: str, args: list[float], loc: SourceLocation, name: str) -> Waveform:
     def need(low: int, high: int) -> None:
         if not low <= len(args) <= high:
-            raise NetlistError(
-                f"{name}: {kind.upper()} takes {low} to {high} values, got {len(args)}", loc
-            )
+            raise NetlistError(f"{name}: {kind.upper()} takes {low} to {high} values, got {len(args)}", loc)
 
     if kind == "pulse":
         need(2, 8)
@@ -303,15 +334,13 @@ def _make_waveform(kind: str, args: list[float], loc: SourceLocation, name: str)
         if len(args) < 2 or len(args) % 2:
             raise NetlistError(f"{name}: PWL needs time-value pairs, got {len(args)} values", loc)
         times = tuple(args[0::2])
-        if any(b < a for a, b in zip(times, times[1:], strict=False)):
+        if any(b < a for a, b in itertools.pairwise(times)):
             raise NetlistError(f"{name}: PWL times must not decrease", loc)
         return Pwl(times, tuple(args[1::2]))
     raise NetlistError(f"{name}: {kind.upper()} sources are not supported", loc)
 
 
-def _build_element(
-    line: Line, fields: list[str], values: _Values, warnings: list[Diagnostic]
-) -> Element:
+def _build_element(line: Line, fields: list[str], values: _Values, warnings: list[Diagnostic]) -> Element:
     name = fields[0]
     letter = name[0].lower()
     loc = line.loc
@@ -373,9 +402,7 @@ def _check_value(element: Element, warnings: list[Diagnostic]) -> None:
     if element.value == 0:
         raise NetlistError(f"{element.label}: value is zero", element.loc)
     if element.value < 0:
-        warnings.append(
-            Diagnostic(element.loc, f"{element.label} has a negative value ({element.value:g})")
-        )
+        warnings.append(Diagnostic(element.loc, f"{element.label} has a negative value ({element.value:g})"))
 
 
 def _parse_tran(line: Line, values: _Values) -> TranSpec:
@@ -385,13 +412,12 @@ def _parse_tran(line: Line, values: _Values) -> TranSpec:
     nums = [values.number(f, line.loc, ".tran") for f in fields[:4]]
     if nums[0] <= 0 or nums[1] <= 0:
         raise NetlistError(".tran: TSTEP and TSTOP must be positive", line.loc)
-    return TranSpec(nums[0], nums[1], nums[2] if len(nums) > 2 else 0.0,
-                    nums[3] if len(nums) > 3 else None, line.loc)
+    return TranSpec(
+        nums[0], nums[1], nums[2] if len(nums) > 2 else 0.0, nums[3] if len(nums) > 3 else None, line.loc
+    )
 
 
-def parse_text(
-    text: str, path: str = "<string>", overrides: Mapping[str, float] | None = None
-) -> Netlist:
+def parse_text(text: str, path: str = "<string>", overrides: Mapping[str, float] | None = None) -> Netlist:
     """Parse netlist text.
 
     Parameters
@@ -458,7 +484,8 @@ def parse_file(path: str | Path, overrides: Mapping[str, float] | None = None) -
     try:
         text = file.read_text()
     except OSError as exc:
-        raise NetlistError(f"cannot read netlist: {exc.strerror or exc}", SourceLocation(str(path), 0)) from None
+        where = SourceLocation(str(path), 0)
+        raise NetlistError(f"cannot read netlist: {exc.strerror or exc}", where) from None
     except UnicodeDecodeError:
         raise NetlistError("cannot read netlist: not a text file", SourceLocation(str(path), 0)) from None
     return parse_text(text, str(path), overrides)

@@ -76,6 +76,7 @@ def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, A
                 "natural_frequency": m.natural_frequency,
                 "damping": _finite(m.damping),
                 "time_constant": _finite(m.time_constant),
+                "abs_error": _finite(m.abs_error),
                 "rel_error": _finite(m.rel_error),
             }
             for m in eig.modes
@@ -104,9 +105,7 @@ def to_json(doc: dict[str, Any]) -> str:
     return "{\n" + body + "\n}\n"
 
 
-def format_matrix(
-    name: str, matrix: np.ndarray, rows: Sequence[str], cols: Sequence[str]
-) -> list[str]:
+def format_matrix(name: str, matrix: np.ndarray, rows: Sequence[str], cols: Sequence[str]) -> list[str]:
     """A labelled matrix as text lines."""
     if matrix.size == 0:
         return [f"{name} = [] ({matrix.shape[0]}x{matrix.shape[1]})"]
@@ -141,10 +140,16 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
     out.append("")
     big = max(model.nstates, model.noutputs, model.ninputs) > TEXT_MATRIX_LIMIT
     if big:
-        for name, mat in (("A", model.A_sparse), ("B", model.B_sparse), ("C", model.C_sparse),
-                          ("D", model.D_sparse)):
-            out.append(f"{name}: {mat.shape[0]}x{mat.shape[1]}, {mat.nnz} non-zeros "
-                       "(use --format json for the entries)")
+        for name, mat in (
+            ("A", model.A_sparse),
+            ("B", model.B_sparse),
+            ("C", model.C_sparse),
+            ("D", model.D_sparse),
+        ):
+            out.append(
+                f"{name}: {mat.shape[0]}x{mat.shape[1]}, {mat.nnz} non-zeros "
+                "(use --format json for the entries)"
+            )
     else:
         out += format_matrix("A", model.A, model.states, model.states)
         out += format_matrix("B", model.B, model.states, model.inputs)
@@ -161,12 +166,9 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
         for m in eig.modes:
             tau = f"{m.time_constant:.5g}" if math.isfinite(m.time_constant) else "inf"
             zeta = f"{m.damping:.4g}" if math.isfinite(m.damping) else "-"
-            err = f"{m.rel_error:.0e}" if math.isfinite(m.rel_error) else "-"
+            err = f"{m.rel_error:.0e}" if math.isfinite(m.rel_error) else f"±{m.abs_error:.0e}"
             re, im = m.value.real + 0.0, m.value.imag + 0.0  # no "-0" in the table
-            out.append(
-                f"  {re:>14.8g} {im:>14.8g} {m.natural_frequency:>12.6g} "
-                f"{zeta:>9} {tau:>11} {err:>8}"
-            )
+            out.append(f"  {re:>14.8g} {im:>14.8g} {m.natural_frequency:>12.6g} {zeta:>9} {tau:>11} {err:>8}")
         stiff = f"{eig.stiffness_ratio:.4g}" if eig.stiffness_ratio is not None else "n/a"
         out.append(f"stability: {eig.verdict}; stiffness ratio: {stiff}")
         for warning in eig.warnings:

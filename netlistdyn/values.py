@@ -46,11 +46,11 @@ def split_number(text: str) -> tuple[float, str] | None:
     if match is None:
         return None
     mantissa, exponent = match.group(1), int(match.group(2) or 0)
-    rest = text[match.end():]
+    rest = text[match.end() :]
     low = rest.lower()
     for suffix in _SUFFIX_ORDER:
         if low.startswith(suffix):
-            rest = rest[len(suffix):]
+            rest = rest[len(suffix) :]
             if suffix == "mil":
                 return float(f"{mantissa}e{exponent}") * MIL, rest
             # Build the decimal string so 10u is exactly the double nearest 1e-5.

@@ -144,9 +144,7 @@ class Sin:
 
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
-        return (
-            f"SIN({self.vo!r} {self.va!r} {self.freq!r} {self.td!r} {self.theta!r} {self.phase!r})"
-        )
+        return f"SIN({self.vo!r} {self.va!r} {self.freq!r} {self.td!r} {self.theta!r} {self.phase!r})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -218,9 +216,7 @@ class Exp:
 
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
-        return (
-            f"EXP({self.v1!r} {self.v2!r} {self.td1!r} {self.tau1!r} {self.td2!r} {self.tau2!r})"
-        )
+        return f"EXP({self.v1!r} {self.v2!r} {self.td1!r} {self.tau1!r} {self.td2!r} {self.tau2!r})"
 
 
 Waveform = Dc | Pulse | Sin | Pwl | Exp
