@@ -166,7 +166,12 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
         for m in eig.modes:
             tau = f"{m.time_constant:.5g}" if math.isfinite(m.time_constant) else "inf"
             zeta = f"{m.damping:.4g}" if math.isfinite(m.damping) else "-"
-            err = f"{m.rel_error:.0e}" if math.isfinite(m.rel_error) else f"±{m.abs_error:.0e}"
+            if math.isfinite(m.rel_error):
+                err = f"{m.rel_error:.0e}"
+            elif math.isfinite(m.abs_error):
+                err = f"±{m.abs_error:.0e}"  # λ = 0: only an absolute error makes sense
+            else:
+                err = "-"  # not estimated
             re, im = m.value.real + 0.0, m.value.imag + 0.0  # no "-0" in the table
             out.append(f"  {re:>14.8g} {im:>14.8g} {m.natural_frequency:>12.6g} {zeta:>9} {tau:>11} {err:>8}")
         stiff = f"{eig.stiffness_ratio:.4g}" if eig.stiffness_ratio is not None else "n/a"
