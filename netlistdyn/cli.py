@@ -21,6 +21,8 @@ from .values import parse_number
 
 EXIT_NETLIST = 1
 EXIT_USAGE = 2
+EXIT_MISMATCH = 3
+EXIT_NO_NGSPICE = 4
 EXIT_INTERNAL = 70
 
 
@@ -153,6 +155,102 @@ def analyze(
         else:
             emit(text_report(model, analysis, netlist), out)
         return 0
+
+    run_guarded(body)
+
+
+@main.command()
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@output_option
+@param_option
+@click.option(
+    "--model-param",
+    "model_params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Override a .param in the compiled model only (ngspice keeps the netlist's value): "
+    "shows what size of modelling error validate detects.",
+)
+@click.option(
+    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
+)
+@click.option("--tstep", type=float, default=None, help="Output step [s].")
+@click.option(
+    "--rtol",
+    type=float,
+    default=1e-3,
+    show_default=True,
+    help="Pass threshold: max error relative to each waveform's peak.",
+)
+@click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to ngspice.")
+@click.option(
+    "--plot", type=click.Path(dir_okay=False), default=None, help="Write a PNG overlay of both responses."
+)
+@click.option(
+    "--pz/--no-pz",
+    default=True,
+    show_default=True,
+    help="Compare ngspice's .pz poles for models of up to 6 states (informative).",
+)
+@format_option
+@out_option
+def validate(
+    netlist: str,
+    outputs: tuple[str, ...],
+    params: tuple[str, ...],
+    model_params: tuple[str, ...],
+    tstop: float | None,
+    tstep: float | None,
+    rtol: float,
+    timeout: float,
+    plot: str | None,
+    pz: bool,
+    fmt: str,
+    out: str | None,
+) -> None:
+    """Run NETLIST through ngspice and the compiled model and compare the responses.
+
+    Exit status 0 when every output agrees within --rtol of its peak, 3 when not.
+    """
+    from .spice import ngspice_missing
+
+    def body() -> int:
+        missing = ngspice_missing()
+        if missing:
+            click.echo(f"netlistdyn: {missing}", err=True)
+            return EXIT_NO_NGSPICE
+        from .analysis import analyze_eigenvalues
+        from .formulate import compile_netlist
+        from .parser import parse_file
+        from .probes import default_probes, parse_probe
+        from .report import to_json, validation_dict, validation_text
+        from .validate import choose_horizon, compare, compare_poles, spice_settings_for
+
+        overrides = parse_param_overrides(params)
+        parsed = parse_file(netlist, overrides)
+        probes = [parse_probe(o, parsed) for o in outputs] if outputs else default_probes(parsed)
+        model_net = parse_file(netlist, {**overrides, **parse_param_overrides(model_params)})
+        model = compile_netlist(model_net, [p.name for p in probes])
+        _print_warnings(model.info.warnings)
+        if (tstop is not None and tstop <= 0) or (tstep is not None and tstep <= 0):
+            raise UsageError("--tstop and --tstep must be positive")
+        eig = analyze_eigenvalues(model.A_sparse)
+        horizon = choose_horizon(parsed, eig, tstop, tstep)
+        settings = spice_settings_for(horizon, eig)
+        report = compare(parsed, model, probes, horizon, settings, rtol, timeout)
+        if pz:
+            from dataclasses import replace
+
+            report = replace(report, poles=compare_poles(parsed, eig, probes))
+        if plot and report.spice.ok:
+            from .plots import validation_plot
+
+            validation_plot(report, plot)
+        if fmt == "json":
+            emit(to_json(validation_dict(report, parsed.title)), out)
+        else:
+            emit(validation_text(report, parsed.title), out)
+        return 0 if report.passed else EXIT_MISMATCH
 
     run_guarded(body)
 

@@ -179,3 +179,102 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
         for warning in eig.warnings:
             out.append(f"warning: {warning}")
     return "\n".join(out) + "\n"
+
+
+def validation_dict(report: Any, title: str) -> dict[str, Any]:
+    """The JSON document for ``validate --format json``."""
+    spice = report.spice
+    doc: dict[str, Any] = {
+        "netlist": report.netlist,
+        "title": title,
+        "passed": report.passed,
+        "rtol": report.rtol,
+        "horizon": {
+            "tstep": report.horizon.tstep,
+            "tstop": report.horizon.tstop,
+            "source": report.horizon.source,
+        },
+        "ngspice": {
+            "ok": spice.ok,
+            "message": spice.message,
+            "settings": spice.settings.describe(),
+            "seconds": spice.seconds,
+            "points": int(report.time.size),
+        },
+        "model_seconds": report.model_seconds,
+        "outputs": [
+            {
+                "name": c.name,
+                "peak": c.peak,
+                "max_abs_error": c.max_abs_error,
+                "max_rel_error": c.max_rel_error,
+                "rms_error": c.rms_error,
+                "passed": c.max_rel_error <= report.rtol,
+            }
+            for c in report.comparisons
+        ],
+        "notes": list(report.notes),
+    }
+    if report.poles is not None:
+        poles = report.poles
+        doc["poles"] = {
+            "ngspice": [[p.real, p.imag] for p in poles.poles],
+            "eigenvalues": [[p.real, p.imag] for p in poles.eigenvalues],
+            "max_rel_difference": poles.max_rel_difference,
+            "message": poles.message,
+        }
+    return doc
+
+
+def validation_text(report: Any, title: str) -> str:
+    """The human-readable ``validate`` report."""
+    spice = report.spice
+    hz = report.horizon
+    out = [
+        title,
+        f"netlist: {report.netlist}",
+        f"horizon: {hz.tstop:g} s, output step {hz.tstep:g} s ({hz.source})",
+        f"ngspice: {spice.settings.describe()}",
+    ]
+    if not spice.ok:
+        out.append(f"ngspice FAILED: {spice.message}")
+    else:
+        out.append(
+            f"ngspice ran in {spice.seconds:.3f} s ({report.time.size} time points); "
+            f"model (exact first-order hold at those points) in {report.model_seconds:.3f} s"
+        )
+        out.append("")
+        width = max(8, *(len(c.name) for c in report.comparisons)) if report.comparisons else 8
+        out.append(
+            f"  {'output':<{width}} {'peak':>11} {'max |err|':>11} {'max err/peak':>13} "
+            f"{'rms err':>11}  result"
+        )
+        for c in report.comparisons:
+            verdict = "ok" if c.max_rel_error <= report.rtol else "MISMATCH"
+            out.append(
+                f"  {c.name:<{width}} {c.peak:>11.4g} {c.max_abs_error:>11.3g} {c.max_rel_error:>13.3g} "
+                f"{c.rms_error:>11.3g}  {verdict}"
+            )
+    if report.poles is not None:
+        poles = report.poles
+        out.append("")
+        if math.isfinite(poles.max_rel_difference):
+            out.append(
+                f"ngspice .pz: {len(poles.poles)} poles for {len(poles.eigenvalues)} eigenvalues; "
+                f"each pole within {poles.max_rel_difference:.2g} (relative) of an eigenvalue"
+                + (f" ({poles.message})" if poles.message else "")
+                + " [informative]"
+            )
+        else:
+            out.append(f"ngspice .pz: {poles.message} [informative]")
+    for note in report.notes:
+        out.append(f"note: {note}")
+    out.append("")
+    if report.passed:
+        out.append(f"PASS: every output within {report.rtol:g} of its peak")
+    elif not spice.ok:
+        out.append("FAIL: ngspice did not produce a reference")
+    else:
+        bad = [c.name for c in report.comparisons if c.max_rel_error > report.rtol]
+        out.append(f"FAIL: {', '.join(bad)} differ by more than {report.rtol:g} of their peak")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,414 @@
+"""The only module that talks to PySpice and ngspice.
+
+A parsed :class:`~netlistdyn.netlist.Netlist` is translated element by
+element into a PySpice ``Circuit`` and run as a transient with zero initial
+conditions (``uic``). Each run happens in a child process: PySpice's
+shared-library mode keeps every vector and is reported to leak memory run
+after run, and only a child process can be stopped at a time limit.
+
+Currents through elements ngspice has no branch current for (R, C, I, G, F)
+are measured with a 0 V source in series (the SPICE ammeter), which does
+not change the circuit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import logging
+import multiprocessing
+import os
+import time
+from collections.abc import Sequence
+from ctypes.util import find_library
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .netlist import GROUND, Element, Kind, Netlist
+from .probes import Probe
+
+INSTALL_HINT = (
+    "ngspice is not available: install it with "
+    "'apt-get install -y ngspice libngspice0-dev && pip install PySpice'"
+)
+#: ngspice vector names are case-folded; node and element keys already are.
+_BRANCH_KINDS = (Kind.VSOURCE, Kind.INDUCTOR, Kind.VCVS, Kind.CCVS)
+
+
+@dataclass(frozen=True, slots=True)
+class SpiceSettings:
+    """How ngspice is run (its ``.options`` and ``.tran`` arguments).
+
+    Attributes
+    ----------
+    tstep, tstop : float
+        ``.tran`` step and horizon (s). ngspice's first internal step is
+        tstep/100, so a small tstep keeps its start-up error small.
+    waveform_step : float
+        The TSTEP that fills the sources' waveform defaults (s); defaults to
+        ``tstep``.
+    tmax : float or None
+        Maximum internal step (s); ``None`` lets ngspice choose.
+    method : str
+        ``"trap"`` or ``"gear"``.
+    reltol : float
+        Relative tolerance.
+    abstol, vntol, chgtol : float or None
+        Absolute current (A), voltage (V) and charge (C) tolerances;
+        ``None`` keeps ngspice's defaults (1e-12, 1e-6, 1e-14).
+    """
+
+    tstep: float
+    tstop: float
+    tmax: float | None = None
+    method: str = "trap"
+    reltol: float = 1e-3
+    abstol: float | None = None
+    vntol: float | None = None
+    chgtol: float | None = None
+    waveform_step: float | None = None
+
+    def describe(self) -> str:
+        """The settings as ngspice options, for reports."""
+        parts = [f"method={self.method}", f"reltol={self.reltol:g}"]
+        for name in ("abstol", "vntol", "chgtol"):
+            value = getattr(self, name)
+            if value is not None:
+                parts.append(f"{name}={value:g}")
+        tran = f".tran {self.tstep:g} {self.tstop:g}" + (f" 0 {self.tmax:g}" if self.tmax else "") + " uic"
+        return f"{tran}; .options {' '.join(parts)}"
+
+    def options(self) -> dict[str, Any]:
+        """Keyword arguments for PySpice's ``simulator.options``."""
+        opts: dict[str, Any] = {"reltol": self.reltol, "method": self.method}
+        for name in ("abstol", "vntol", "chgtol"):
+            value = getattr(self, name)
+            if value is not None:
+                opts[name] = value
+        return opts
+
+
+@dataclass(frozen=True)
+class SpiceRun:
+    """Result of one ngspice transient.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        ngspice's own time points (s).
+    outputs : dict
+        Output name → waveform at ``time``.
+    seconds : float
+        Wall time of the ngspice run itself (s), without process start-up.
+    settings : SpiceSettings
+    ok : bool
+        False when ngspice failed or did not reach ``tstop``.
+    message : str
+        ngspice's complaint when it failed (e.g. "timestep too small").
+    """
+
+    time: NDArray[np.float64]
+    outputs: dict[str, NDArray[np.float64]]
+    seconds: float
+    settings: SpiceSettings
+    ok: bool = True
+    message: str = ""
+    netlist_text: str = field(default="", repr=False)
+
+
+def ngspice_missing() -> str | None:
+    """``None`` when PySpice and libngspice are usable, else how to install them."""
+    if importlib.util.find_spec("PySpice") is None:
+        return INSTALL_HINT
+    if os.environ.get("NGSPICE_LIBRARY_PATH"):
+        return None
+    if find_library("ngspice") is None and not any(
+        os.path.exists(p)
+        for p in (
+            "/usr/lib/x86_64-linux-gnu/libngspice.so",
+            "/usr/lib/aarch64-linux-gnu/libngspice.so",
+            "/usr/lib/libngspice.so",
+            "/usr/local/lib/libngspice.so",
+        )
+    ):
+        return INSTALL_HINT
+    return None
+
+
+def spice_name(element: Element) -> str:
+    """The element's name in the ngspice netlist (letter first)."""
+    return element.name
+
+
+def _sense_name(element: Element) -> str:
+    return f"Vsense_{element.key}"
+
+
+def build_circuit(
+    netlist: Netlist,
+    probes: Sequence[Probe],
+    waveform_step: float,
+    tstop: float,
+    ac_source: str | None = None,
+) -> Any:
+    """Translate a netlist into a PySpice ``Circuit``.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    probes : sequence of Probe
+        Current probes on elements without an ngspice branch current get a
+        0 V ammeter in series.
+    waveform_step, tstop : float
+        TSTEP and TSTOP that fill the waveforms' SPICE defaults (PULSE rise
+        time...). Every waveform is written out in full, so ngspice sees the
+        stimulus the model sees whatever step it is then run with.
+    ac_source : str, optional
+        Key of a source given ``AC 1`` (ngspice's ``.pz`` needs one).
+
+    Returns
+    -------
+    PySpice.Spice.Netlist.Circuit
+    """
+    from PySpice.Spice.Netlist import Circuit
+
+    circuit = Circuit(netlist.title or "netlistdyn")
+    sensed = {
+        p.element for p in probes if p.kind == "i" and netlist.element(p.element).kind not in _BRANCH_KINDS
+    }
+    for element in netlist.elements:
+        pos, neg = (*element.nodes, "", "")[:2]
+        if element.key in sensed:
+            middle = f"{element.key}__sense"
+            circuit.V(_sense_name(element)[1:], middle, neg, 0)
+            neg = middle
+        _add_element(circuit, element, pos, neg, netlist, (waveform_step, tstop), element.key == ac_source)
+    return circuit
+
+
+def _node(name: str) -> Any:
+    return 0 if name == GROUND else name
+
+
+def _add_element(
+    circuit: Any,
+    element: Element,
+    pos: str,
+    neg: str,
+    netlist: Netlist,
+    span: tuple[float, float],
+    ac: bool = False,
+) -> None:
+    name = spice_name(element)[1:]
+    p, n = _node(pos), _node(neg)
+    kind = element.kind
+    if kind is Kind.RESISTOR:
+        circuit.R(name, p, n, element.value)
+    elif kind is Kind.CAPACITOR:
+        circuit.C(name, p, n, element.value)
+    elif kind is Kind.INDUCTOR:
+        circuit.L(name, p, n, element.value)
+    elif kind in (Kind.VSOURCE, Kind.ISOURCE):
+        waveform = element.waveform.resolved(*span) if element.waveform is not None else None
+        wave = waveform.spice() if waveform is not None else f"DC {element.value!r}"
+        if element.waveform is not None and element.value:
+            wave = f"DC {element.value!r} {wave}"
+        if ac:
+            wave = f"{wave} AC 1"
+        (circuit.V if kind is Kind.VSOURCE else circuit.I)(name, p, n, wave)
+    elif kind is Kind.VCVS:
+        assert element.control_nodes is not None
+        cp, cn = (_node(x) for x in element.control_nodes)
+        circuit.VCVS(name, p, n, cp, cn, voltage_gain=element.value)
+    elif kind is Kind.VCCS:
+        assert element.control_nodes is not None
+        cp, cn = (_node(x) for x in element.control_nodes)
+        circuit.VCCS(name, p, n, cp, cn, transconductance=element.value)
+    elif kind is Kind.CCCS:
+        circuit.CCCS(name, p, n, element.control_source, current_gain=element.value)
+    elif kind is Kind.CCVS:
+        circuit.CCVS(name, p, n, element.control_source, transresistance=element.value)
+    elif kind is Kind.COUPLING:
+        assert element.coupled is not None
+        # PySpice prefixes the inductor names with "L" itself.
+        first, second = (spice_name(netlist.element(k))[1:] for k in element.coupled)
+        circuit.K(name, first, second, element.value)
+    else:
+        raise NotImplementedError(f"{element.label}: no ngspice translation for {kind.name}")
+
+
+def _vector(analysis: Any, probe: Probe, netlist: Netlist) -> NDArray[np.float64]:
+    if probe.kind == "v":
+        a, b = probe.nodes
+        va = np.asarray(analysis.nodes[a], dtype=float) if a != GROUND else 0.0
+        vb = np.asarray(analysis.nodes[b], dtype=float) if b != GROUND else 0.0
+        return np.asarray(va - vb, dtype=float) * np.ones(len(analysis.time))
+    element = netlist.element(probe.element)
+    if element.kind in _BRANCH_KINDS:
+        return np.asarray(analysis.branches[element.key], dtype=float)
+    return np.asarray(analysis.branches[_sense_name(element).lower()], dtype=float)
+
+
+def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings) -> None:
+    """Run in the child process: simulate and send back a plain dict."""
+    logging.disable(logging.CRITICAL)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)  # ngspice's own banner and notes would otherwise reach our stdout
+    os.dup2(devnull, 2)
+    result: dict[str, Any] = {"ok": False, "message": "", "time": np.zeros(0), "outputs": {}, "seconds": 0.0}
+    try:
+        circuit = build_circuit(netlist, probes, settings.waveform_step or settings.tstep, settings.tstop)
+        simulator = circuit.simulator(simulator="ngspice-shared")
+        simulator.options(**settings.options())
+        result["netlist_text"] = str(simulator)
+        start = time.perf_counter()
+        try:
+            analysis = simulator.transient(
+                step_time=settings.tstep,
+                end_time=settings.tstop,
+                max_time=settings.tmax,
+                use_initial_condition=True,
+            )
+        finally:
+            result["seconds"] = time.perf_counter() - start
+        stderr = " ".join(str(x) for x in _collect_stderr(simulator))
+        t = np.asarray(analysis.time, dtype=float)
+        result["time"] = t
+        result["outputs"] = {p.name: _vector(analysis, p, netlist) for p in probes}
+        reached = t.size > 0 and t[-1] >= settings.tstop * (1 - 1e-9)
+        result["ok"] = bool(reached)
+        if not reached:
+            stopped = t[-1] if t.size else 0.0
+            result["message"] = _failure_message(stderr) or f"ngspice stopped at t={stopped:g} s"
+    except Exception as exc:
+        stderr = " ".join(str(x) for x in _collect_stderr(locals().get("simulator")))
+        result["message"] = _failure_message(stderr) or f"{type(exc).__name__}: {exc}"
+    with contextlib.suppress(Exception):
+        conn.send(result)
+    conn.close()
+
+
+def _collect_stderr(simulator: Any) -> list[str]:
+    if simulator is None:
+        return []
+    try:
+        return list(simulator.ngspice.stderr)
+    except Exception:
+        return []
+
+
+def _failure_message(stderr: str) -> str:
+    low = stderr.lower()
+    if "timestep too small" in low:
+        return "ngspice: timestep too small"
+    if "singular matrix" in low:
+        return "ngspice: singular matrix"
+    for line in stderr.split("Error"):
+        if line.strip():
+            return "ngspice error:" + line.strip()[:200] if "error" in low else ""
+    return ""
+
+
+def run_transient(
+    netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings, timeout: float | None = None
+) -> SpiceRun:
+    """Simulate ``netlist`` in ngspice and return the probed waveforms.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    probes : sequence of Probe
+    settings : SpiceSettings
+    timeout : float, optional
+        Seconds after which the ngspice process is killed.
+
+    Returns
+    -------
+    SpiceRun
+        ``ok`` is False (with a message) when ngspice failed or timed out.
+    """
+    result = _in_child(_child, (netlist, list(probes), settings), timeout)
+    if result is None:
+        message = f"ngspice did not finish within {timeout:g} s" if timeout else "ngspice crashed"
+        return SpiceRun(np.zeros(0), {}, float(timeout or 0.0), settings, False, message)
+    return SpiceRun(
+        result["time"],
+        result["outputs"],
+        result["seconds"],
+        settings,
+        result["ok"],
+        result["message"],
+        result.get("netlist_text", ""),
+    )
+
+
+@dataclass(frozen=True)
+class PoleZeroRun:
+    """Poles from ngspice's ``.pz`` analysis (1/s)."""
+
+    poles: NDArray[np.complex128]
+    ok: bool
+    message: str = ""
+
+
+def _pz_child(conn: Any, netlist: Netlist, ports: tuple[str, str, str, str], kind: str, source: str) -> None:
+    logging.disable(logging.CRITICAL)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    result: dict[str, Any] = {"ok": False, "poles": np.zeros(0, dtype=complex), "message": ""}
+    try:
+        circuit = build_circuit(netlist, (), 1.0, 1.0, ac_source=source)
+        simulator = circuit.simulator(simulator="ngspice-shared")
+        analysis = simulator.polezero(*(_node(n) for n in ports), kind, "pol")
+        poles = [complex(np.asarray(v).ravel()[0]) for k, v in analysis.nodes.items() if k.startswith("pole")]
+        result.update(ok=True, poles=np.asarray(poles, dtype=complex))
+    except Exception as exc:
+        result["message"] = f"{type(exc).__name__}: {exc}"
+    with contextlib.suppress(Exception):
+        conn.send(result)
+    conn.close()
+
+
+def run_polezero(netlist: Netlist, output: tuple[str, str], timeout: float = 60.0) -> PoleZeroRun:
+    """ngspice ``.pz`` poles of the transfer function from the first source to ``output``.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    output : tuple of str
+        Output node pair.
+    timeout : float
+        Seconds allowed.
+    """
+    if not netlist.sources:
+        return PoleZeroRun(np.zeros(0, dtype=complex), False, "no independent source to excite")
+    source = netlist.sources[0]
+    kind = "vol" if source.kind is Kind.VSOURCE else "cur"
+    ports = (source.nodes[0], source.nodes[1], output[0], output[1])
+    result = _in_child(_pz_child, (netlist, ports, kind, source.key), timeout)
+    if result is None:
+        return PoleZeroRun(np.zeros(0, dtype=complex), False, "ngspice .pz did not finish")
+    return PoleZeroRun(result["poles"], result["ok"], result["message"])
+
+
+def _in_child(target: Any, args: tuple[Any, ...], timeout: float | None) -> dict[str, Any] | None:
+    """Run ``target(conn, *args)`` in a child process and return what it sends."""
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    ctx = multiprocessing.get_context(method)
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=target, args=(child, *args), daemon=True)
+    proc.start()
+    child.close()
+    result: dict[str, Any] | None = None
+    if parent.poll(timeout):
+        with contextlib.suppress(EOFError):
+            result = parent.recv()
+    proc.join(timeout=5)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+    return result

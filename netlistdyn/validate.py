@@ -1,0 +1,329 @@
+"""Validation against ngspice: same netlist, same stimulus, both from zero state.
+
+The compiled model is simulated exactly (first-order hold on the union of
+ngspice's time points and the input breakpoints, see
+:mod:`netlistdyn.simulate`) and compared with ngspice at ngspice's own time
+points. ngspice is run tight enough to be a reference (see
+:func:`spice_settings_for`); its settings are part of the report.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .analysis import EigenAnalysis
+from .model import StateSpaceModel
+from .netlist import Netlist
+from .probes import Probe
+from .simulate import input_signals, simulate_foh
+from .spice import SpiceRun, SpiceSettings, run_polezero, run_transient
+
+#: Default pass threshold: max error relative to each waveform's peak (ngspice's default reltol).
+DEFAULT_RTOL = 1e-3
+#: ngspice's relative tolerance for validation runs, tightest first: where ngspice
+#: aborts ("timestep too small") the next is tried and the report says so.
+VALIDATION_RELTOLS = (1e-9, 1e-7, 1e-5)
+#: Stiffness ratio above which ngspice uses Gear integration.
+GEAR_STIFFNESS = 1e3
+#: Phase error allowed to ngspice's trapezoidal rule over the horizon (relative).
+PHASE_RTOL = 1e-6
+#: ngspice's maximum step is at most 1/STEPS_PER_HORIZON of the horizon ...
+STEPS_PER_HORIZON = 2000
+#: ... and at least 1/MAX_STEPS of it, to bound its run time.
+MAX_STEPS = 2_000_000
+#: Largest model for which ngspice's .pz poles are compared.
+PZ_MAX_STATES = 6
+
+
+@dataclass(frozen=True, slots=True)
+class Horizon:
+    """Transient horizon and output step (s), and where they came from."""
+
+    tstep: float
+    tstop: float
+    source: str
+
+
+@dataclass(frozen=True, slots=True)
+class OutputComparison:
+    """Errors of one output against ngspice.
+
+    Attributes
+    ----------
+    name : str
+    peak : float
+        max |ngspice waveform| (output units).
+    max_abs_error : float
+        max |ours − ngspice|.
+    max_rel_error : float
+        max_abs_error / peak.
+    rms_error : float
+        Root-mean-square difference over ngspice's time points.
+    """
+
+    name: str
+    peak: float
+    max_abs_error: float
+    max_rel_error: float
+    rms_error: float
+
+
+@dataclass(frozen=True)
+class PoleComparison:
+    """ngspice's ``.pz`` poles against the model's eigenvalues (informative only).
+
+    Attributes
+    ----------
+    poles : tuple of complex
+        What ngspice returned (1/s).
+    eigenvalues : tuple of complex
+        The model's eigenvalues (1/s).
+    max_rel_difference : float
+        Each ngspice pole against its nearest eigenvalue, relative to
+        |eigenvalue|; NaN when ngspice returned nothing.
+    message : str
+        Eigenvalues ngspice did not return, if any.
+    """
+
+    poles: tuple[complex, ...]
+    eigenvalues: tuple[complex, ...]
+    max_rel_difference: float
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class ValidationReport:
+    """Everything ``validate`` found."""
+
+    netlist: str
+    horizon: Horizon
+    settings: SpiceSettings
+    spice: SpiceRun
+    model_seconds: float
+    comparisons: tuple[OutputComparison, ...]
+    rtol: float
+    time: np.ndarray
+    ours: np.ndarray
+    notes: tuple[str, ...] = ()
+    poles: PoleComparison | None = None
+
+    @property
+    def passed(self) -> bool:
+        """True when ngspice ran and every output is within ``rtol`` of its peak."""
+        return self.spice.ok and all(c.max_rel_error <= self.rtol for c in self.comparisons)
+
+
+def choose_horizon(
+    netlist: Netlist, eig: EigenAnalysis | None, tstop: float | None, tstep: float | None
+) -> Horizon:
+    """``--tstop/--tstep``, else the netlist's ``.tran``, else from the eigenvalues.
+
+    From the eigenvalues: five of the slowest time constants, or ten periods
+    of the slowest oscillation if longer, capped at 10⁴ of the fastest time
+    scale so that a stiff circuit stays affordable; the step is 1/1000 of
+    the horizon.
+    """
+    if tstop is not None:
+        return Horizon(tstep or tstop / 1000, tstop, "command line")
+    if netlist.tran is not None:
+        return Horizon(tstep or netlist.tran.tstep, netlist.tran.tstop, ".tran in the netlist")
+    scales_slow, scales_fast = [], []
+    for mode in eig.modes if eig is not None else ():
+        lam = mode.value
+        if lam.real < 0:
+            scales_slow.append(5.0 / -lam.real)
+            scales_fast.append(1.0 / -lam.real)
+        if lam.imag:
+            period = 2 * math.pi / abs(lam.imag)
+            scales_slow.append(10 * period)
+            scales_fast.append(period)
+    if not scales_slow:
+        return Horizon(1e-3, 1.0, "default (no eigenvalue to scale by)")
+    horizon = min(max(scales_slow), 1e4 * min(scales_fast))
+    capped = horizon < max(scales_slow)
+    source = "from the eigenvalues" + (" (capped at 1e4 x the fastest time scale)" if capped else "")
+    return Horizon(tstep or horizon / 1000, horizon, source)
+
+
+def _time_scales(eig: EigenAnalysis | None) -> tuple[float, list[tuple[float, float]]]:
+    """Fastest time scale (s) and the (ω, decay time) of each oscillatory mode."""
+    fastest = math.inf
+    oscillations = []
+    for mode in eig.modes if eig is not None else ():
+        lam = mode.value
+        if abs(lam):
+            fastest = min(fastest, 1.0 / abs(lam))
+        if lam.imag:
+            decay = 5.0 / -lam.real if lam.real < 0 else math.inf
+            oscillations.append((abs(lam.imag), decay))
+    return fastest, oscillations
+
+
+def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSettings:
+    """Tight ngspice settings for a reference run.
+
+    * reltol the first of :data:`VALIDATION_RELTOLS`, abstol 1e-15 A, vntol 1e-12 V;
+    * ``.tran`` step at most 1/1000 of the fastest time scale: ngspice's
+      first step (tstep/100, backward Euler) is then accurate;
+    * maximum step from the trapezoidal rule's phase error, which no reltol
+      controls: (ωh)²·ωT/12 ≤ :data:`PHASE_RTOL` for every oscillatory mode
+      over the time T it lasts (shared/README measured 67 % drift over 80
+      periods at ngspice's defaults), and at most 1/:data:`STEPS_PER_HORIZON`
+      of the horizon;
+    * Gear where the stiffness ratio exceeds :data:`GEAR_STIFFNESS` and no
+      mode oscillates with a quality factor above 2 (Gear damps
+      oscillations), trapezoidal otherwise.
+    """
+    fastest, oscillations = _time_scales(eig)
+    tmax = horizon.tstop / STEPS_PER_HORIZON
+    lightly_damped = False
+    for omega, decay in oscillations:
+        span = min(horizon.tstop, decay)
+        tmax = min(tmax, math.sqrt(12 * PHASE_RTOL / (omega**3 * span)))
+        lightly_damped |= omega * decay / 5 > 4  # Q = ω/(2|Re λ|) > 2
+    tmax = max(tmax, horizon.tstop / MAX_STEPS)
+    stiff = eig is not None and eig.stiffness_ratio is not None and eig.stiffness_ratio > GEAR_STIFFNESS
+    step = min(horizon.tstep, fastest / 1000, tmax)
+    return SpiceSettings(
+        tstep=step,
+        tstop=horizon.tstop,
+        tmax=tmax,
+        method="gear" if stiff and not lightly_damped else "trap",
+        reltol=VALIDATION_RELTOLS[0],
+        abstol=1e-15,
+        vntol=1e-12,
+        waveform_step=horizon.tstep,
+    )
+
+
+def _impulse_notes(model: StateSpaceModel, signals: Any) -> list[str]:
+    """Outputs that depend on du/dt of an input that steps at t = 0 hold an impulse there."""
+    if not model.has_input_derivative:
+        return []
+    start = signals(np.array([0.0]))[0]
+    notes = []
+    for i, name in enumerate(model.outputs):
+        stepped = [model.inputs[j] for j in range(model.ninputs) if model.D1[i, j] and start[j] != 0]
+        if stepped:
+            notes.append(
+                f"{name} depends on d/dt of {', '.join(stepped)}, which steps at t = 0: it holds an "
+                "impulse there that no sampled waveform represents; ramp the source to compare it"
+            )
+    return notes
+
+
+def compare(
+    netlist: Netlist,
+    model: StateSpaceModel,
+    probes: Sequence[Probe],
+    horizon: Horizon,
+    settings: SpiceSettings,
+    rtol: float = DEFAULT_RTOL,
+    timeout: float | None = None,
+) -> ValidationReport:
+    """Run ngspice and the model on the same stimulus and compare every output.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    model : StateSpaceModel
+        Compiled with ``probes`` as its outputs, in the same order.
+    probes : sequence of Probe
+    horizon : Horizon
+    settings : SpiceSettings
+    rtol : float
+        Pass threshold on the max error relative to each waveform's peak.
+    timeout : float, optional
+        Seconds allowed to ngspice.
+    """
+    notes: list[str] = []
+    run = run_transient(netlist, probes, settings, timeout)
+    for reltol in VALIDATION_RELTOLS:
+        if run.ok or reltol <= settings.reltol or "did not finish" in run.message:
+            continue
+        notes.append(f"ngspice failed at reltol={settings.reltol:g} ({run.message}); retried at {reltol:g}")
+        settings = replace(settings, reltol=reltol)
+        run = run_transient(netlist, probes, settings, timeout)
+    if not run.ok:
+        return ValidationReport(
+            netlist.path,
+            horizon,
+            settings,
+            run,
+            0.0,
+            (),
+            rtol,
+            run.time,
+            np.zeros((0, len(probes))),
+            (*notes, f"ngspice failed: {run.message}"),
+        )
+    start = time.perf_counter()
+    signals = input_signals(netlist, horizon.tstep, horizon.tstop)
+    notes.extend(_impulse_notes(model, signals))
+    ours, _ = simulate_foh(model, signals, run.time)
+    model_seconds = time.perf_counter() - start
+    comparisons = []
+    for j, probe in enumerate(probes):
+        ref = run.outputs[probe.name]
+        diff = ours[:, j] - ref
+        peak = float(np.max(np.abs(ref))) if ref.size else 0.0
+        max_abs = float(np.max(np.abs(diff))) if diff.size else 0.0
+        scale = peak if peak > 0 else 1.0
+        if peak == 0:
+            notes.append(f"{probe.name} is identically zero in ngspice: its error is absolute")
+        comparisons.append(
+            OutputComparison(probe.name, peak, max_abs, max_abs / scale, float(np.sqrt(np.mean(diff**2))))
+        )
+    return ValidationReport(
+        netlist.path,
+        horizon,
+        settings,
+        run,
+        model_seconds,
+        tuple(comparisons),
+        rtol,
+        run.time,
+        ours,
+        tuple(notes),
+    )
+
+
+def compare_poles(netlist: Netlist, eig: EigenAnalysis, probes: Sequence[Probe]) -> PoleComparison | None:
+    """Run ngspice's ``.pz`` for models of up to :data:`PZ_MAX_STATES` states.
+
+    ``.pz`` is accurate on small circuits and unreliable beyond a few
+    sections (measured: 18 poles for a 10-state ladder), so it is reported,
+    never used to fail a validation.
+    """
+    values = tuple(m.value for m in eig.modes)
+    if not values or len(values) > PZ_MAX_STATES:
+        return None
+    if not netlist.sources:
+        return None
+    port = set(netlist.sources[0].nodes)
+    candidates = [p.nodes for p in probes if p.kind == "v" and set(p.nodes) != port]
+    candidates += [(n, "0") for n in netlist.nodes if n not in port]
+    if not candidates:
+        return None
+    output = candidates[0]
+    run = run_polezero(netlist, output)
+    poles = tuple(complex(p) for p in run.poles)
+    if not run.ok or not poles:
+        return PoleComparison(poles, values, math.nan, run.message or "ngspice returned no poles")
+    worst = 0.0
+    unmatched = list(values)
+    for pole in poles:
+        nearest = min(unmatched or values, key=lambda lam, pole=pole: abs(pole - lam))
+        worst = max(worst, abs(nearest - pole) / max(abs(nearest), 1e-300))
+        if nearest in unmatched:
+            unmatched.remove(nearest)
+    note = ""
+    if unmatched:
+        note = "not among ngspice's poles: " + ", ".join(f"{lam:.6g}" for lam in unmatched)
+    return PoleComparison(poles, values, worst, note)
