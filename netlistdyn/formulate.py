@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -37,6 +37,7 @@ import scipy.sparse.linalg as spla
 
 from .errors import NetlistError, SingularCircuitError, TopologyError, UsageError
 from .graph import CircuitGraph, Role, TreeSplit, build_graph, check_sources, normal_tree
+from .mechanics import state_prefix
 from .model import CompileInfo, ExcessElement, StateShift, StateSpaceModel
 from .netlist import GROUND, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
@@ -56,6 +57,11 @@ class Classes:
     d: np.ndarray
     y: np.ndarray
     source_input: np.ndarray  # for each s branch, its input column
+
+
+@dataclass(frozen=True)
+class NotSupportedError(NetlistError):
+    """The circuit needs a formulation this compiler does not have (higher index)."""
 
 
 @dataclass(frozen=True)
@@ -104,37 +110,85 @@ def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> S
         For output specifications that name unknown nodes or elements.
     """
     probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
-    circuit, tree = choose_tree(netlist)
-    check_sources(circuit, tree)
-    equations = assemble(netlist, circuit, tree)
-    classes = classify(circuit, tree, netlist)
-    return reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+    candidates = tree_candidates(netlist)
+    failure: NetlistError | None = None
+    for circuit, tree in candidates:
+        try:
+            check_sources(circuit, tree)
+            equations = assemble(netlist, circuit, tree)
+            classes = classify(circuit, tree, netlist)
+            model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+        except (SingularCircuitError, NotSupportedError) as exc:
+            failure = failure or exc
+            continue
+        return add_displacements(model, probes)
+    assert failure is not None
+    raise failure
 
 
-def choose_tree(netlist: Netlist) -> tuple[CircuitGraph, TreeSplit]:
-    """Build the graph and a normal tree with one port of every transformer in the tree.
+#: Up to this many transformers every orientation is tried; above, a greedy search.
+EXHAUSTIVE_TRANSFORMERS = 8
 
-    A transformer port is first taken as voltage-defined (port 1) and the
-    other as current-defined; where a loop of voltage sources pushes port 1
-    out of the tree, the roles are swapped.
+
+def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
+    """Normal trees to try, best first.
+
+    Without transformers there is one. An ideal transformer (gear, lever,
+    motor) needs exactly one port in the tree: that port is voltage-defined
+    (like a controlled voltage source) and the other current-defined. Which
+    port goes in the tree decides which capacitors and inductors end up as
+    states, so every orientation is tried (greedily above
+    :data:`EXHAUSTIVE_TRANSFORMERS`) and ranked by the number of states it
+    gives — the order of complexity is the largest — preferring the default
+    orientation (first port in the tree) on ties.
     """
-    swapped: frozenset[str] = frozenset()
-    for _ in range(3):
+    keys = [e.key for e in netlist.elements if e.kind is Kind.TRANSFORMER]
+    if not keys:
+        circuit = build_graph(netlist)
+        return [(circuit, normal_tree(circuit))]
+
+    def attempt(swapped: frozenset[str]) -> tuple[int, CircuitGraph, TreeSplit] | None:
         circuit = build_graph(netlist, swapped)
         tree = normal_tree(circuit)
-        bad = _misplaced_transformers(circuit, tree)
-        if not bad:
-            return circuit, tree
-        flip = frozenset(e.key for e in bad)
-        if flip <= swapped:
-            break
-        swapped = swapped ^ flip
-    element = bad[0]
-    raise TopologyError(
-        f"{element.label}: both ports are fixed by the rest of the circuit "
-        "(each port lies in a loop of voltage sources or a cutset of current sources)",
-        element.loc,
-    )
+        if _misplaced_transformers(circuit, tree):
+            return None
+        states = sum(
+            1
+            for b in circuit.branches
+            if (b.element.kind is Kind.CAPACITOR and tree.in_tree[b.index])
+            or (b.element.kind is Kind.INDUCTOR and not tree.in_tree[b.index])
+        )
+        return states, circuit, tree
+
+    found: list[tuple[int, int, CircuitGraph, TreeSplit]] = []
+    if len(keys) <= EXHAUSTIVE_TRANSFORMERS:
+        for mask in range(1 << len(keys)):
+            swapped = frozenset(k for i, k in enumerate(keys) if mask >> i & 1)
+            result = attempt(swapped)
+            if result is not None:
+                found.append((result[0], len(swapped), result[1], result[2]))
+    else:
+        swapped = frozenset()
+        best = attempt(swapped)
+        improved = True
+        while improved:
+            improved = False
+            for key in keys:
+                trial = swapped ^ {key}
+                result = attempt(trial)
+                if result is not None and (best is None or result[0] > best[0]):
+                    swapped, best, improved = trial, result, True
+        if best is not None:
+            found.append((best[0], len(swapped), best[1], best[2]))
+    if not found:
+        element = next(e for e in netlist.elements if e.kind is Kind.TRANSFORMER)
+        raise TopologyError(
+            f"{element.label}: cannot place exactly one port in the tree (each port lies in a loop of "
+            "voltage sources or a cutset of current sources)",
+            element.loc,
+        )
+    found.sort(key=lambda item: (-item[0], item[1]))
+    return [(circuit, tree) for _, _, circuit, tree in found]
 
 
 def _misplaced_transformers(circuit: CircuitGraph, tree: TreeSplit) -> list[Element]:
@@ -439,7 +493,7 @@ def reduce_to_state_space(
         _rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y), equations, classes, m
     )
     if not _is_zero(yb.dy, scale):
-        raise NetlistError(
+        raise NotSupportedError(
             "a controlled source depends on the derivative of a resistive quantity "
             f"({', '.join(involved) or 'check the controlled sources'}); not supported",
             netlist.elements[0].loc,
@@ -460,7 +514,7 @@ def reduce_to_state_space(
         _rows(G, classes.x), _rows(E, classes.x), _rows(F, classes.x), equations, classes, m
     )
     if not (_is_zero(xb.dy @ R, scale) and _is_zero(xb.dy @ S, scale)):
-        raise NetlistError(
+        raise NotSupportedError(
             "the circuit needs second derivatives of its variables (higher index); not supported",
             netlist.elements[0].loc,
         )
@@ -537,11 +591,17 @@ def _outputs(
     n = circuit.nbranches
     rows = []
     for probe in probes:
-        if probe.kind == "v":
+        if probe.kind in ("v", "x"):  # x(n) is integrated by add_displacements
             rows.append(_potential_rows(tree, [probe.nodes], n))
         else:
             branch = next(b for b in circuit.branches if b.element.key == probe.element)
-            rows.append(sp.csr_array(equations.imap[[branch.index], :]))
+            row = sp.csr_array(equations.imap[[branch.index], :])
+            if probe.kind == "angle":
+                # i = k (x_pivot − x_bob) with L = 1/k, so angle = (x_bob − x_pivot)/l = −L i / l.
+                rod = branch.element
+                assert rod.rod is not None
+                row = row * (-rod.value / rod.rod.length)
+            rows.append(row)
     if not rows:
         empty = sp.csr_array((0, len(classes.x)))
         return empty, sp.csr_array((0, m)), sp.csr_array((0, m))
@@ -563,9 +623,45 @@ def _outputs(
     return C, D, D1
 
 
+def add_displacements(model: StateSpaceModel, probes: Sequence[Probe]) -> StateSpaceModel:
+    """Integrate the velocity rows of ``x(...)`` outputs into displacement states.
+
+    Only the displacements a user asks for get a state (named like the
+    output): z' = C_v x + D_v u, and the output is z + D1_v u, so a velocity
+    with an input-derivative term integrates exactly.
+    """
+    picks = [j for j, p in enumerate(probes) if p.kind == "x"]
+    if not picks:
+        return model
+    k = len(picks)
+    C, D, D1 = model.C_sparse, model.D_sparse, model.D1_sparse
+    rows_c, rows_d, rows_d1 = sp.csr_array(C[picks, :]), sp.csr_array(D[picks, :]), sp.csr_array(D1[picks, :])
+    A = sp.block_array([[model.A_sparse, None], [rows_c, sp.csr_array((k, k))]], format="csr")
+    B = sp.vstack([model.B_sparse, rows_d], format="csr")
+    select = sp.csr_array((np.ones(k), (picks, np.arange(k))), shape=(model.noutputs, k))
+    keep = sp.diags_array(np.array([0.0 if j in picks else 1.0 for j in range(model.noutputs)]))
+    C_new = sp.hstack([keep @ C, select], format="csr")
+    D_new = _clean(keep @ D + select @ rows_d1)
+    D1_new = _clean(keep @ D1)
+    names = tuple(probes[j].name for j in picks)
+    info = replace(model.info, integrators=names)
+    return StateSpaceModel(
+        _clean(A),
+        _clean(B),
+        _clean(C_new),
+        D_new,
+        D1_new,
+        (*model.states, *names),
+        model.inputs,
+        model.outputs,
+        model.title,
+        info,
+    )
+
+
 def state_name(element: Element) -> str:
-    """Name of the state an element carries: ``q(C1)`` or ``i(L1)``."""
-    return f"q({element.name})" if element.kind is Kind.CAPACITOR else f"i({element.name})"
+    """Name of the state an element carries: ``q(C1)``, ``i(L1)``, ``p(m1)`` or ``f(k1)``."""
+    return f"{state_prefix(element)}({element.name})"
 
 
 def _controlled_labels(netlist: Netlist) -> list[str]:

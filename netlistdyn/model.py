@@ -81,6 +81,9 @@ class CompileInfo:
         States redefined to absorb input derivatives.
     warnings : tuple of Diagnostic
         Warnings from parsing and compiling.
+    integrators : tuple of str
+        Displacement states added because an ``x(...)`` output asked for
+        them (not part of the order of complexity).
     """
 
     order: int
@@ -88,6 +91,7 @@ class CompileInfo:
     excess: tuple[ExcessElement, ...] = ()
     shifts: tuple[StateShift, ...] = ()
     warnings: tuple[Diagnostic, ...] = ()
+    integrators: tuple[str, ...] = ()
 
 
 def _readonly(matrix: sp.sparray) -> np.ndarray:

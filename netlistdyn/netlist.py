@@ -33,6 +33,28 @@ class Kind(enum.Enum):
 
 
 @dataclass(frozen=True, slots=True)
+class RodSpec:
+    """Geometry of a pendulum rod (``ROD name pivot bob length [g=] [inverted]``).
+
+    Attributes
+    ----------
+    length : float
+        Rod length (m).
+    g : float
+        Gravitational acceleration (m/s²).
+    inverted : bool
+        Linearised about the upright equilibrium (negative stiffness).
+    tension : float
+        Weight carried (N), filled in once the masses are known.
+    """
+
+    length: float
+    g: float = 9.81
+    inverted: bool = False
+    tension: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
 class Element:
     """One netlist element.
 
@@ -61,6 +83,8 @@ class Element:
         Transient waveform of an independent source (``None``: DC value).
     keyword : str, optional
         Mechanical keyword (``MASS``, ``SPRING``...) the element came from.
+    rod : RodSpec, optional
+        For ``ROD`` elements: length, g and orientation.
     """
 
     kind: Kind
@@ -73,6 +97,7 @@ class Element:
     coupled: tuple[str, str] | None = None
     waveform: Waveform | None = None
     keyword: str | None = None
+    rod: RodSpec | None = None
 
     @property
     def key(self) -> str:

@@ -17,11 +17,12 @@ import itertools
 import math
 import re
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .errors import NetlistError, SourceLocation, UsageError
 from .expressions import ExpressionError, evaluate
+from .mechanics import KEYWORDS, build_mechanical, resolve_rods
 from .netlist import GROUND, Diagnostic, Element, Kind, Netlist, TranSpec
 from .values import parse_number
 from .waveforms import Exp, Pulse, Pwl, Sin, Waveform
@@ -344,6 +345,16 @@ def _build_element(line: Line, fields: list[str], values: _Values, warnings: lis
     name = fields[0]
     letter = name[0].lower()
     loc = line.loc
+    if name.lower() in KEYWORDS:
+        return build_mechanical(
+            name.lower(),
+            fields[1:],
+            loc,
+            lambda token, what: values.number(token, loc, what),
+            _node,
+            lambda tokens, what: _parse_waveform(tokens, loc, values, what),
+            warnings,
+        )
 
     def nodes(count: int) -> tuple[str, ...]:
         if len(fields) < 1 + count:
@@ -439,14 +450,15 @@ def parse_text(text: str, path: str = "<string>", overrides: Mapping[str, float]
         With the location of the first problem.
     """
     title, lines = read_lines(Path(path), text)
-    params = evaluate_params(lines, overrides or {})
+    top, definitions = _split_subcircuits(lines)
+    params = evaluate_params(top, overrides or {})
     values = _Values(params)
     warnings: list[Diagnostic] = []
     elements: list[Element] = []
     seen: dict[str, SourceLocation] = {}
     tran: TranSpec | None = None
     skipping_control = False
-    for line in lines:
+    for line in top:
         fields = tokenize(line.text)
         word = fields[0].lower()
         if skipping_control:
@@ -465,17 +477,146 @@ def parse_text(text: str, path: str = "<string>", overrides: Mapping[str, float]
             else:
                 raise NetlistError(f"unsupported directive {word}", line.loc)
             continue
-        element = _build_element(line, fields, values, warnings)
-        if element.key in seen:
-            raise NetlistError(
-                f"{element.name}: duplicate element name (first defined at {seen[element.key]})",
-                line.loc,
-            )
-        seen[element.key] = line.loc
-        elements.append(element)
+        if word[0] == "x" and word not in KEYWORDS:
+            built = _expand_instance(line, fields, definitions, values, warnings, ())
+        else:
+            built = [_build_element(line, fields, values, warnings)]
+        for element in built:
+            if element.key in seen:
+                raise NetlistError(
+                    f"{element.name}: duplicate element name (first defined at {seen[element.key]})",
+                    element.loc,
+                )
+            seen[element.key] = element.loc
+            elements.append(element)
     if not elements:
         raise NetlistError("the netlist has no elements", SourceLocation(path, 1))
+    elements = resolve_rods(elements)
     return Netlist(title, path, tuple(elements), params, tran, tuple(warnings))
+
+
+@dataclass(frozen=True)
+class Subcircuit:
+    """A ``.subckt name ports...`` definition with its own nested definitions."""
+
+    name: str
+    ports: tuple[str, ...]
+    body: tuple[Line, ...]
+    definitions: dict[str, Subcircuit]
+    loc: SourceLocation
+
+
+def _split_subcircuits(lines: list[Line]) -> tuple[list[Line], dict[str, Subcircuit]]:
+    """Separate ``.subckt ... .ends`` blocks (nested ones scoped to their parent)."""
+    top: list[Line] = []
+    definitions: dict[str, Subcircuit] = {}
+    i = 0
+    while i < len(lines):
+        fields = tokenize(lines[i].text)
+        word = fields[0].lower()
+        if word == ".ends":
+            raise NetlistError(".ends without .subckt", lines[i].loc)
+        if word != ".subckt":
+            top.append(lines[i])
+            i += 1
+            continue
+        if len(fields) < 2:
+            raise NetlistError(".subckt needs a name", lines[i].loc)
+        if any(f == "=" for f in fields) or any(f.lower() == "params:" for f in fields):
+            raise NetlistError(f".subckt {fields[1]}: subcircuit parameters are not supported", lines[i].loc)
+        depth, j = 1, i + 1
+        while j < len(lines) and depth:
+            inner = lines[j].text.split()[0].lower()
+            depth += inner == ".subckt"
+            depth -= inner == ".ends"
+            j += 1
+        if depth:
+            raise NetlistError(f".subckt {fields[1]}: no matching .ends", lines[i].loc)
+        body, nested = _split_subcircuits(lines[i + 1 : j - 1])
+        for line in body:
+            if line.text.split()[0].lower() in (".param", ".tran"):
+                raise NetlistError(
+                    f"{line.text.split()[0]} inside .subckt {fields[1]} is not supported", line.loc
+                )
+        key = fields[1].lower()
+        if key in definitions:
+            raise NetlistError(f".subckt {fields[1]}: defined twice", lines[i].loc)
+        ports = tuple(_node(n) for n in fields[2:])
+        definitions[key] = Subcircuit(fields[1], ports, tuple(body), nested, lines[i].loc)
+        i = j
+    return top, definitions
+
+
+MAX_SUBCIRCUIT_DEPTH = 50
+
+
+def _expand_instance(
+    line: Line,
+    fields: list[str],
+    definitions: dict[str, Subcircuit],
+    values: _Values,
+    warnings: list[Diagnostic],
+    stack: tuple[str, ...],
+) -> list[Element]:
+    """Flatten ``Xname nodes... subname``: elements renamed ``Xname.elem``, nodes ``xname.node``."""
+    name = fields[0]
+    if any(f == "=" for f in fields):
+        raise NetlistError(f"{name}: subcircuit parameters are not supported", line.loc)
+    if len(fields) < 2:
+        raise NetlistError(f"{name}: expected X name nodes... subcircuit", line.loc)
+    sub_name = fields[-1].lower()
+    sub = definitions.get(sub_name)
+    if sub is None:
+        raise NetlistError(f"{name}: unknown subcircuit {fields[-1]!r}", line.loc)
+    if sub_name in stack or len(stack) > MAX_SUBCIRCUIT_DEPTH:
+        raise NetlistError(f"{name}: subcircuit {sub.name} instantiates itself", line.loc)
+    outer = [_node(n) for n in fields[1:-1]]
+    if len(outer) != len(sub.ports):
+        raise NetlistError(
+            f"{name}: subcircuit {sub.name} has {len(sub.ports)} ports, got {len(outer)} nodes", line.loc
+        )
+    prefix = name
+    port_map = dict(zip(sub.ports, outer, strict=True))
+    scope = {**definitions, **sub.definitions}
+    out: list[Element] = []
+    for inner_line in sub.body:
+        inner_fields = tokenize(inner_line.text)
+        word = inner_fields[0].lower()
+        if word.startswith("."):
+            if word in IGNORED_DIRECTIVES:
+                continue
+            raise NetlistError(f"{word} inside .subckt {sub.name} is not supported", inner_line.loc)
+        if word[0] == "x" and word not in KEYWORDS:
+            built = _expand_instance(inner_line, inner_fields, scope, values, warnings, (*stack, sub_name))
+        else:
+            built = [_build_element(inner_line, inner_fields, values, warnings)]
+        out.extend(_rename(e, prefix, port_map) for e in built)
+    return out
+
+
+def _rename(element: Element, prefix: str, port_map: dict[str, str]) -> Element:
+    """Place an element of a subcircuit body into its instance's scope."""
+
+    def node(n: str) -> str:
+        if n == GROUND:
+            return GROUND
+        return port_map.get(n, f"{prefix.lower()}.{n}")
+
+    def ref(key: str | None) -> str | None:
+        return None if key is None else f"{prefix.lower()}.{key}"
+
+    return replace(
+        element,
+        name=f"{prefix}.{element.name}",
+        nodes=tuple(node(n) for n in element.nodes),
+        control_nodes=None
+        if element.control_nodes is None
+        else (node(element.control_nodes[0]), node(element.control_nodes[1])),
+        control_source=ref(element.control_source),
+        coupled=None
+        if element.coupled is None
+        else (f"{prefix.lower()}.{element.coupled[0]}", f"{prefix.lower()}.{element.coupled[1]}"),
+    )
 
 
 def parse_file(path: str | Path, overrides: Mapping[str, float] | None = None) -> Netlist:

@@ -22,7 +22,10 @@ class Probe:
     Attributes
     ----------
     kind : str
-        ``"v"`` (node voltage or difference, V) or ``"i"`` (branch current, A).
+        ``"v"`` (node voltage or difference: V, or a velocity), ``"i"``
+        (branch current: A, or a force), ``"x"`` (displacement of a node
+        from its rest position, the integral of its velocity) or
+        ``"angle"`` (of a pendulum rod, rad).
     name : str
         Label as shown to the user, e.g. ``v(out)`` or ``i(R1)``.
     nodes : tuple of str
@@ -65,14 +68,22 @@ def parse_probe(text: str, netlist: Netlist) -> Probe:
     if not match:
         raise UsageError(f"--output {text!r}: expected v(node), v(node1,node2) or i(element)")
     func, first, second = match.group(1).lower(), match.group(2), match.group(3)
-    if func == "v":
+    if func in ("v", "x"):
         known = set(netlist.nodes) | {GROUND}
         a, b = _canonical(first), _canonical(second) if second else GROUND
         for node in (a, b):
             if node not in known:
                 raise UsageError(f"--output {text}: no node {node!r} in the netlist")
-        name = f"v({first},{second})" if second else f"v({first})"
-        return Probe("v", name, (a, b))
+        name = f"{func}({first},{second})" if second else f"{func}({first})"
+        return Probe(func, name, (a, b))
+    if func == "angle" and second is None:
+        try:
+            element = netlist.element(first.lower())
+        except KeyError:
+            raise UsageError(f"--output {text}: no element {first!r} in the netlist") from None
+        if element.rod is None:
+            raise UsageError(f"--output {text}: {element.label} is not a ROD")
+        return Probe("angle", f"angle({element.name})", element=element.key)
     if func == "i" and second is None:
         key = first.lower()
         try:
@@ -82,7 +93,9 @@ def parse_probe(text: str, netlist: Netlist) -> Probe:
         if element.kind in (Kind.COUPLING, Kind.TRANSFORMER):
             raise UsageError(f"--output {text}: {element.label} has no single branch current")
         return Probe("i", f"i({element.name})", element=key)
-    raise UsageError(f"--output {text!r}: expected v(node), v(node1,node2) or i(element)")
+    raise UsageError(
+        f"--output {text!r}: expected v(node), v(node1,node2), i(element), x(node) or angle(rod)"
+    )
 
 
 def default_probes(netlist: Netlist) -> list[Probe]:

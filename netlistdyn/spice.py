@@ -138,13 +138,38 @@ def ngspice_missing() -> str | None:
     return None
 
 
+_LETTER = {
+    Kind.RESISTOR: "R",
+    Kind.CAPACITOR: "C",
+    Kind.INDUCTOR: "L",
+    Kind.VSOURCE: "V",
+    Kind.ISOURCE: "I",
+    Kind.VCVS: "E",
+    Kind.VCCS: "G",
+    Kind.CCCS: "F",
+    Kind.CCVS: "H",
+    Kind.COUPLING: "K",
+    Kind.TRANSFORMER: "E",
+}
+
+
 def spice_name(element: Element) -> str:
-    """The element's name in the ngspice netlist (letter first)."""
-    return element.name
+    """The element's name in the ngspice netlist: its SPICE letter first.
+
+    SPICE elements keep their names; mechanical elements and elements of
+    flattened subcircuits become ``<letter>_<keyword>_<name>`` with every
+    character ngspice might misread replaced by ``_``.
+    """
+    letter = _LETTER[element.kind]
+    plain = element.name.replace("_", "").isalnum()
+    if element.keyword is None and plain and element.name[0].upper() == letter:
+        return element.name
+    clean = "".join(ch if ch.isalnum() else "_" for ch in element.name)
+    return f"{letter}_{(element.keyword or 'x').lower()}_{clean}"
 
 
 def _sense_name(element: Element) -> str:
-    return f"Vsense_{element.key}"
+    return "Vsense_" + "".join(ch if ch.isalnum() else "_" for ch in element.key)
 
 
 def build_circuit(
@@ -179,10 +204,18 @@ def build_circuit(
     sensed = {
         p.element for p in probes if p.kind == "i" and netlist.element(p.element).kind not in _BRANCH_KINDS
     }
+    for probe in probes:
+        if probe.kind == "x":  # displacement: a unit capacitor integrating the velocity
+            node = _integrator_node(probe)
+            circuit.VCCS(
+                f"int_{node}", 0, node, _node(probe.nodes[0]), _node(probe.nodes[1]), transconductance=1
+            )
+            circuit.C(f"int_{node}", node, 0, 1)
+            circuit.R(f"int_{node}", node, 0, 1e30)  # a DC path; time constant 1e30 s
     for element in netlist.elements:
         pos, neg = (*element.nodes, "", "")[:2]
         if element.key in sensed:
-            middle = f"{element.key}__sense"
+            middle = _sense_name(element).lower() + "_node"
             circuit.V(_sense_name(element)[1:], middle, neg, 0)
             neg = middle
         _add_element(circuit, element, pos, neg, netlist, (waveform_step, tstop), element.key == ac_source)
@@ -191,6 +224,10 @@ def build_circuit(
 
 def _node(name: str) -> Any:
     return 0 if name == GROUND else name
+
+
+def _integrator_node(probe: Probe) -> str:
+    return "xint_" + "".join(ch if ch.isalnum() else "_" for ch in probe.name)
 
 
 def _add_element(
@@ -202,7 +239,7 @@ def _add_element(
     span: tuple[float, float],
     ac: bool = False,
 ) -> None:
-    name = spice_name(element)[1:]
+    name = spice_name(element)[1:]  # PySpice adds the letter
     p, n = _node(pos), _node(neg)
     kind = element.kind
     if kind is Kind.RESISTOR:
@@ -228,9 +265,20 @@ def _add_element(
         cp, cn = (_node(x) for x in element.control_nodes)
         circuit.VCCS(name, p, n, cp, cn, transconductance=element.value)
     elif kind is Kind.CCCS:
-        circuit.CCCS(name, p, n, element.control_source, current_gain=element.value)
+        assert element.control_source is not None
+        sense = spice_name(netlist.element(element.control_source))
+        circuit.CCCS(name, p, n, sense, current_gain=element.value)
     elif kind is Kind.CCVS:
-        circuit.CCVS(name, p, n, element.control_source, transresistance=element.value)
+        assert element.control_source is not None
+        sense = spice_name(netlist.element(element.control_source))
+        circuit.CCVS(name, p, n, sense, transresistance=element.value)
+    elif kind is Kind.TRANSFORMER:
+        # Ideal transformer: v1 = N v2 (E on port 1) and i2 = −N i1 (F on port 2, sensing i1).
+        p1, n1, p2, n2 = (_node(x) for x in element.nodes)
+        inner = f"{name}_port1"
+        circuit.V(f"{name}_sense", p1, inner, 0)
+        circuit.VCVS(name, inner, n1, p2, n2, voltage_gain=element.value)
+        circuit.CCCS(name, p2, n2, f"V{name}_sense", current_gain=-element.value)
     elif kind is Kind.COUPLING:
         assert element.coupled is not None
         # PySpice prefixes the inductor names with "L" itself.
@@ -246,10 +294,17 @@ def _vector(analysis: Any, probe: Probe, netlist: Netlist) -> NDArray[np.float64
         va = np.asarray(analysis.nodes[a], dtype=float) if a != GROUND else 0.0
         vb = np.asarray(analysis.nodes[b], dtype=float) if b != GROUND else 0.0
         return np.asarray(va - vb, dtype=float) * np.ones(len(analysis.time))
+    if probe.kind == "x":
+        return np.asarray(analysis.nodes[_integrator_node(probe)], dtype=float)
     element = netlist.element(probe.element)
     if element.kind in _BRANCH_KINDS:
-        return np.asarray(analysis.branches[element.key], dtype=float)
-    return np.asarray(analysis.branches[_sense_name(element).lower()], dtype=float)
+        current = np.asarray(analysis.branches[spice_name(element).lower()], dtype=float)
+    else:
+        current = np.asarray(analysis.branches[_sense_name(element).lower()], dtype=float)
+    if probe.kind == "angle":
+        assert element.rod is not None
+        return current * (-element.value / element.rod.length)
+    return current
 
 
 def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings) -> None:
@@ -366,8 +421,8 @@ def _pz_child(conn: Any, netlist: Netlist, ports: tuple[str, str, str, str], kin
         analysis = simulator.polezero(*(_node(n) for n in ports), kind, "pol")
         poles = [complex(np.asarray(v).ravel()[0]) for k, v in analysis.nodes.items() if k.startswith("pole")]
         result.update(ok=True, poles=np.asarray(poles, dtype=complex))
-    except Exception as exc:
-        result["message"] = f"{type(exc).__name__}: {exc}"
+    except Exception:  # reported, not raised
+        result["message"] = "ngspice's .pz analysis failed (it often does with a pole at 0 or unstable poles)"
     with contextlib.suppress(Exception):
         conn.send(result)
     conn.close()

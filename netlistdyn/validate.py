@@ -152,17 +152,23 @@ def choose_horizon(
 
 
 def _time_scales(eig: EigenAnalysis | None) -> tuple[float, list[tuple[float, float]]]:
-    """Fastest time scale (s) and the (ω, decay time) of each oscillatory mode."""
+    """Fastest time scale (s), and (rate |λ|, duration) of every mode whose error accumulates.
+
+    Errors made on a decaying real mode decay with it and ngspice's local
+    error control handles them; on an oscillatory mode (phase) or a growing
+    one they accumulate over the time the mode lasts: five time constants
+    for a decaying oscillation, the whole horizon otherwise.
+    """
     fastest = math.inf
-    oscillations = []
+    accumulating = []
     for mode in eig.modes if eig is not None else ():
         lam = mode.value
         if abs(lam):
             fastest = min(fastest, 1.0 / abs(lam))
-        if lam.imag:
-            decay = 5.0 / -lam.real if lam.real < 0 else math.inf
-            oscillations.append((abs(lam.imag), decay))
-    return fastest, oscillations
+        if lam.imag or lam.real > 0:
+            duration = 5.0 / -lam.real if lam.real < 0 else math.inf
+            accumulating.append((abs(lam), duration))
+    return fastest, accumulating
 
 
 def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSettings:
@@ -171,23 +177,25 @@ def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSett
     * reltol the first of :data:`VALIDATION_RELTOLS`, abstol 1e-15 A, vntol 1e-12 V;
     * ``.tran`` step at most 1/1000 of the fastest time scale: ngspice's
       first step (tstep/100, backward Euler) is then accurate;
-    * maximum step from the trapezoidal rule's phase error, which no reltol
-      controls: (ωh)²·ωT/12 ≤ :data:`PHASE_RTOL` for every oscillatory mode
-      over the time T it lasts (shared/README measured 67 % drift over 80
-      periods at ngspice's defaults), and at most 1/:data:`STEPS_PER_HORIZON`
-      of the horizon;
+    * maximum step from the error that no reltol controls, the trapezoidal
+      rule's accumulated phase and growth error: (|λ|h)²·|λ|T/12 ≤
+      :data:`PHASE_RTOL` for every oscillatory or growing mode over the time
+      T it lasts (shared/README measured 67 % drift over 80 periods at
+      ngspice's defaults), and at most 1/:data:`STEPS_PER_HORIZON` of the
+      horizon;
     * Gear where the stiffness ratio exceeds :data:`GEAR_STIFFNESS` and no
       mode oscillates with a quality factor above 2 (Gear damps
       oscillations), trapezoidal otherwise.
     """
-    fastest, oscillations = _time_scales(eig)
+    fastest, accumulating = _time_scales(eig)
     tmax = horizon.tstop / STEPS_PER_HORIZON
-    lightly_damped = False
-    for omega, decay in oscillations:
-        span = min(horizon.tstop, decay)
-        tmax = min(tmax, math.sqrt(12 * PHASE_RTOL / (omega**3 * span)))
-        lightly_damped |= omega * decay / 5 > 4  # Q = ω/(2|Re λ|) > 2
+    for rate, duration in accumulating:
+        span = min(horizon.tstop, duration)
+        tmax = min(tmax, math.sqrt(12 * PHASE_RTOL / (rate**3 * span)))
     tmax = max(tmax, horizon.tstop / MAX_STEPS)
+    lightly_damped = any(
+        m.value.imag and abs(m.value.imag) > 4 * abs(m.value.real) for m in (eig.modes if eig else ())
+    )
     stiff = eig is not None and eig.stiffness_ratio is not None and eig.stiffness_ratio > GEAR_STIFFNESS
     step = min(horizon.tstep, fastest / 1000, tmax)
     return SpiceSettings(
