@@ -59,7 +59,6 @@ class Classes:
     source_input: np.ndarray  # for each s branch, its input column
 
 
-@dataclass(frozen=True)
 class NotSupportedError(NetlistError):
     """The circuit needs a formulation this compiler does not have (higher index)."""
 
@@ -416,6 +415,56 @@ def _eliminate_sources_and_excess(
     return _Block(_cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du))
 
 
+#: Largest resistive system for which derivatives of algebraic unknowns are resolved (dense SVD).
+ALGEBRAIC_DERIVATIVE_LIMIT = 3000
+
+
+def _substitute_algebraic_derivatives(
+    yb: _Block, scale: float, involved: list[str], netlist: Netlist
+) -> _Block:
+    """Replace derivatives of resistive unknowns that the derivative-free rows fix.
+
+    An excess capacitor in a loop with a controlled voltage-type branch (a
+    VCVS, or a transformer port: rigidly geared inertias) puts the
+    derivative of that branch's voltage into the resistive equations. When
+    the rows without derivatives determine those unknowns from states and
+    inputs alone (y_Z = S_x x + S_u u, checked through the null space), their
+    derivatives are S_x x' + S_u u' and the system stays first order.
+    """
+    dy = yb.dy.tocsc()
+    z = np.flatnonzero(np.diff(dy.indptr))
+    dynamic = (np.diff(yb.dx.indptr) + np.diff(yb.dy.indptr) + np.diff(yb.du.indptr)) > 0
+    rows = np.flatnonzero(~dynamic)
+    n_y = yb.y.shape[1]
+    unsupported = NotSupportedError(
+        "a controlled source or transformer depends on the derivative of a resistive quantity "
+        f"({', '.join(involved) or 'check the controlled sources'}); not supported",
+        netlist.elements[0].loc,
+    )
+    if n_y > ALGEBRAIC_DERIVATIVE_LIMIT or len(rows) == 0:
+        raise unsupported
+    g = yb.y.toarray()[rows]
+    rhs = -np.hstack([yb.x.toarray()[rows], yb.u.toarray()[rows]])
+    solution, *_ = np.linalg.lstsq(g, rhs, rcond=None)
+    if np.linalg.norm(g @ solution - rhs) > 1e-9 * max(np.linalg.norm(rhs), 1e-300):
+        raise unsupported
+    kernel = sla.null_space(g) if g.shape[0] else np.eye(n_y)
+    if kernel.size and np.max(np.abs(kernel[z])) > 1e-9:
+        raise unsupported  # the derivative-free rows leave y_Z undetermined
+    nx_ = yb.x.shape[1]
+    s_x = sp.csr_array(solution[z, :nx_])
+    s_u = sp.csr_array(solution[z, nx_:])
+    dy_z = sp.csr_array(dy[:, z])
+    return _Block(
+        yb.x,
+        yb.y,
+        _clean(yb.dx + dy_z @ s_x),
+        sp.csr_array(yb.dy.shape),
+        yb.u,
+        _clean(yb.du + dy_z @ s_u),
+    )
+
+
 def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
     """matrix⁻¹ rhs for a square sparse matrix, refusing (near-)singular ones.
 
@@ -493,11 +542,7 @@ def reduce_to_state_space(
         _rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y), equations, classes, m
     )
     if not _is_zero(yb.dy, scale):
-        raise NotSupportedError(
-            "a controlled source depends on the derivative of a resistive quantity "
-            f"({', '.join(involved) or 'check the controlled sources'}); not supported",
-            netlist.elements[0].loc,
-        )
+        yb = _substitute_algebraic_derivatives(yb, scale, involved, netlist)
     resistive_msg = "the resistive part of the circuit has no unique solution for these values" + (
         f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
     )

@@ -120,7 +120,13 @@ def format_matrix(name: str, matrix: np.ndarray, rows: Sequence[str], cols: Sequ
 
 
 def _unit_of_state(name: str) -> str:
-    return {"q": "C", "i": "A"}.get(name.split("(", 1)[0], "")
+    return {
+        "q": "C",
+        "i": "A",
+        "p": "momentum",
+        "f": "force",
+        "x": "displacement",
+    }.get(name.split("(", 1)[0], "")
 
 
 def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) -> str:
