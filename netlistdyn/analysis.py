@@ -26,6 +26,11 @@ TRUST_RTOL = 1e-6
 DENSE_LIMIT = 1000
 #: Up to this many states each eigenvalue gets an error estimate (needs both eigenvector sets).
 ESTIMATE_LIMIT = 600
+#: Up to this many states, eigenvalues the double-precision estimate cannot vouch for are
+#: recomputed in extended precision.
+REFINE_LIMIT = 40
+#: Digits used for the extended-precision recomputation.
+REFINE_DIGITS = 50
 #: How many eigenvalues of each end ARPACK computes for large models.
 EXTREME_COUNT = 6
 
@@ -141,6 +146,30 @@ def _error_estimates(a: np.ndarray, w: np.ndarray, vl: np.ndarray, vr: np.ndarra
         return np.maximum(estimate, EPS * np.abs(w))
 
 
+def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues of the stored matrix in 50-digit arithmetic, with their data error.
+
+    The computation itself is then exact to far below a double; what remains
+    is the effect of the matrix entries' own rounding: eps times the
+    componentwise condition number |y|ᵀ|A||x| / |yᴴx|.
+    """
+    import mpmath as mp
+
+    with mp.workdps(REFINE_DIGITS):
+        values, left, right = mp.eig(mp.matrix(a.tolist()), left=True, right=True)
+        w = np.array([complex(v) for v in values])
+        vl = np.array([[complex(left[i, j]) for j in range(a.shape[0])] for i in range(a.shape[0])])
+        vr = np.array([[complex(right[i, j]) for j in range(a.shape[0])] for i in range(a.shape[0])])
+    # mpmath's left eigenvectors are rows (y A = λ y): transpose and conjugate to columns.
+    vl = vl.T.conj()
+    abs_a = np.abs(a)
+    overlap = np.abs(np.einsum("ij,ij->j", vl.conj(), vr))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.einsum("ij,ij->j", np.abs(vl), abs_a @ np.abs(vr)) / overlap
+    abs_err = np.maximum(EPS * np.where(np.isfinite(cond), cond, np.inf), 1e-30 * np.abs(w))
+    return w, abs_err
+
+
 def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:
     """A⁻¹ when LAPACK can form it with a small backward error, else None."""
     n = a.shape[0]
@@ -184,6 +213,10 @@ def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"
     abs_err = _error_estimates(a, w, vl, vr)
     abs_err = np.where(np.isfinite(abs_err), abs_err, np.inf)
+    rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
+    if a.shape[0] <= REFINE_LIMIT and np.any(rel > TRUST_RTOL):
+        w, abs_err = _extended_precision(a)
+        method += f"; recomputed in {REFINE_DIGITS}-digit arithmetic (mpmath)"
     # Parts below their own error estimate are zero as far as the data can tell.
     re = np.where(np.abs(w.real) <= abs_err, 0.0, w.real)
     im = np.where(np.abs(w.imag) <= abs_err, 0.0, w.imag)
@@ -238,6 +271,8 @@ def _verdict(modes: list[Mode], a_norm: float, complete: bool, a: np.ndarray | N
     axis = [m for m, t in zip(modes, tol, strict=True) if abs(m.value.real) <= t]
     if not axis:
         return "asymptotically stable"
+    if _unresolved_zeros(modes):
+        return "undetermined"
     # Marginal only if every eigenvalue on the imaginary axis is semisimple.
     if a is not None:
         scale = max(a_norm, 1.0)
@@ -249,6 +284,21 @@ def _verdict(modes: list[Mode], a_norm: float, complete: bool, a: np.ndarray | N
             if geo < alg:
                 return "unstable"
     return "marginally stable"
+
+
+def _unresolved_zeros(modes: list[Mode]) -> list[Mode]:
+    """Eigenvalues reported as 0 whose error could hide a real eigenvalue.
+
+    A zero is vouched for when its error estimate is below 1e-6 of the
+    smallest nonzero eigenvalue's magnitude (an exact structural zero, as
+    for two inductors in parallel, has an error near the roundoff of the
+    others); otherwise the spectrum near 0 is not resolved.
+    """
+    nonzero = [abs(m.value) for m in modes if m.value != 0]
+    floor = min(nonzero) if nonzero else 1.0
+    return [
+        m for m in modes if m.value == 0 and (not math.isfinite(m.abs_error) or m.abs_error > 1e-6 * floor)
+    ]
 
 
 def analyze_eigenvalues(a: sp.sparray | np.ndarray, which: str = "auto") -> EigenAnalysis:

@@ -19,6 +19,7 @@ import click
 from .errors import NetlistError, UsageError
 from .values import parse_number
 
+METHOD_CHOICES = ("auto", "exact", "rational", "krylov", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 EXIT_NETLIST = 1
 EXIT_USAGE = 2
 EXIT_MISMATCH = 3
@@ -253,6 +254,210 @@ def validate(
         return 0 if report.passed else EXIT_MISMATCH
 
     run_guarded(body)
+
+
+@main.command()
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@output_option
+@param_option
+@click.option(
+    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
+)
+@click.option("--tstep", type=float, default=None, help="Output step [s] (default: tstop/1000).")
+@click.option(
+    "--method",
+    type=click.Choice(list(METHOD_CHOICES)),
+    default="auto",
+    show_default=True,
+    help="exact (dense expm, small models), rational (sparse Padé, large models), krylov, "
+    "or a scipy solve_ivp method; auto picks by size.",
+)
+@click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance.")
+@click.option("--atol", type=float, default=None, help="Absolute tolerance (solve_ivp methods).")
+@click.option("--ic", "ics", multiple=True, metavar="STATE=VALUE", help="Initial state, e.g. q(C1)=1e-6.")
+@click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
+@click.option(
+    "--csv", "csv_path", type=click.Path(dir_okay=False), default=None, help="Write the outputs as CSV."
+)
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Write a PNG plot.")
+@format_option
+@out_option
+def simulate(
+    netlist: str,
+    outputs: tuple[str, ...],
+    params: tuple[str, ...],
+    tstop: float | None,
+    tstep: float | None,
+    method: str,
+    rtol: float,
+    atol: float | None,
+    ics: tuple[str, ...],
+    force: bool,
+    csv_path: str | None,
+    plot: str | None,
+    fmt: str,
+    out: str | None,
+) -> None:
+    """Time response of NETLIST to its own source waveforms, from zero state (or --ic).
+
+    Exit status 3 when the method refused, failed or diverged (the message says why).
+    """
+
+    def body() -> int:
+        import numpy as np
+
+        from . import integrators
+        from .analysis import analyze_eigenvalues
+        from .formulate import compile_netlist
+        from .parser import parse_file
+        from .report import simulation_csv, simulation_dict, simulation_summary, to_json
+        from .simulate import choose_horizon, input_signals
+
+        parsed = parse_file(netlist, parse_param_overrides(params))
+        model = compile_netlist(parsed, list(outputs) or None)
+        _print_warnings(model.info.warnings)
+        for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
+            if value is not None and not value > 0:
+                raise UsageError(f"{name} must be positive")
+        eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+        horizon = choose_horizon(parsed, eig, tstop, tstep)
+        count = round(horizon.tstop / horizon.tstep)
+        if count > 10_000_000:
+            raise UsageError(f"{count} output points: choose a larger --tstep")
+        times = np.linspace(0.0, horizon.tstop, count + 1)
+        x0 = _initial_state(model, ics)
+        signals = input_signals(parsed, horizon.tstep, horizon.tstop)
+        result = integrators.run(model, signals, times, method, rtol, atol, x0, force, _progress_printer(fmt))
+        if not result.ok:
+            click.echo(f"netlistdyn: {result.method} {result.status}: {result.message}", err=True)
+            return EXIT_MISMATCH
+        if csv_path:
+            write_atomic(csv_path, simulation_csv(result, model.outputs))
+        if plot:
+            from .plots import simulation_plot
+
+            simulation_plot(result, model.outputs, parsed.title, plot)
+        if fmt == "json":
+            emit(to_json(simulation_dict(result, model, horizon)), out)
+        else:
+            note = f" ({horizon.source})"
+            summary = (
+                f"{parsed.title}\nsimulated 0..{horizon.tstop:g} s, {times.size} points{note}; "
+                f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
+            )
+            emit(summary + simulation_summary(result, model.outputs), out)
+        return 0
+
+    run_guarded(body)
+
+
+@main.command()
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@output_option
+@param_option
+@click.option(
+    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
+)
+@click.option("--points", type=int, default=1000, show_default=True, help="Grid intervals for scoring.")
+@click.option("--repeats", type=int, default=3, show_default=True, help="Timed repetitions (median).")
+@click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to each run.")
+@click.option(
+    "--method",
+    "methods",
+    multiple=True,
+    type=click.Choice(list(METHOD_CHOICES[1:])),
+    help="Our methods to run (repeatable; default: all that apply).",
+)
+@click.option("--ngspice/--no-ngspice", default=True, show_default=True, help="Include ngspice rows.")
+@click.option(
+    "--plot", type=click.Path(dir_okay=False), default=None, help="Log-log PNG of error against time."
+)
+@format_option
+@out_option
+def bench(
+    netlist: str,
+    outputs: tuple[str, ...],
+    params: tuple[str, ...],
+    tstop: float | None,
+    points: int,
+    repeats: int,
+    timeout: float,
+    methods: tuple[str, ...],
+    ngspice: bool,
+    plot: str | None,
+    fmt: str,
+    out: str | None,
+) -> None:
+    """Error against run time for every integration method and for ngspice, on NETLIST."""
+
+    def body() -> int:
+        from .analysis import analyze_eigenvalues
+        from .bench import run_bench
+        from .formulate import compile_netlist
+        from .parser import parse_file
+        from .probes import default_probes, parse_probe
+        from .report import bench_dict, bench_text, to_json
+        from .simulate import choose_horizon
+        from .validate import spice_settings_for
+
+        if points < 10 or repeats < 1:
+            raise UsageError("--points must be at least 10 and --repeats at least 1")
+        parsed = parse_file(netlist, parse_param_overrides(params))
+        probes = [parse_probe(o, parsed) for o in outputs] if outputs else default_probes(parsed)
+        model = compile_netlist(parsed, [p.name for p in probes])
+        _print_warnings(model.info.warnings)
+        eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+        horizon = choose_horizon(parsed, eig, tstop, None)
+        report = run_bench(
+            parsed,
+            model,
+            probes,
+            horizon,
+            spice_settings_for(horizon, eig),
+            points,
+            repeats,
+            timeout,
+            methods or None,
+            ngspice,
+        )
+        if plot:
+            from .plots import bench_plot
+
+            bench_plot(report, plot)
+        emit(to_json(bench_dict(report)) if fmt == "json" else bench_text(report), out)
+        return 0
+
+    run_guarded(body)
+
+
+def _initial_state(model: Any, ics: tuple[str, ...]) -> Any:
+    import numpy as np
+
+    if not ics:
+        return None
+    x0 = np.zeros(model.nstates)
+    index = {name.lower(): k for k, name in enumerate(model.states)}
+    for item in ics:
+        name, sep, text = item.partition("=")
+        value = parse_number(text.strip()) if sep else None
+        key = name.strip().lower()
+        if value is None or key not in index:
+            known = ", ".join(model.states)
+            raise UsageError(f"--ic {item!r}: expected STATE=VALUE with STATE one of {known}")
+        x0[index[key]] = value
+    return x0
+
+
+def _progress_printer(fmt: str) -> Callable[[float], None] | None:
+    """A one-line progress indicator on stderr, only on a terminal."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(fraction: float) -> None:
+        sys.stderr.write(f"\rsimulating: {100 * fraction:5.1f} %")
+        sys.stderr.flush()
+
+    return show
 
 
 if __name__ == "__main__":  # pragma: no cover

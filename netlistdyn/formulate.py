@@ -35,7 +35,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import NetlistError, SingularCircuitError, TopologyError, UsageError
+from .errors import NetlistError, SingularCircuitError, SourceLocation, TopologyError, UsageError
 from .graph import CircuitGraph, Role, TreeSplit, build_graph, check_sources, normal_tree
 from .mechanics import state_prefix
 from .model import CompileInfo, ExcessElement, StateShift, StateSpaceModel
@@ -362,12 +362,15 @@ def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classe
 
 
 def _clean(matrix: sp.sparray) -> sp.csr_array:
-    """CSR copy with rounding noise and explicit zeros removed."""
+    """CSR copy without explicit zeros.
+
+    Only exact zeros go: element values span many decades (1 fF beside
+    1 kH), so no threshold relative to a matrix's largest entry can tell a
+    small coefficient from rounding noise, and dropping a real one would
+    silently change the model.
+    """
     out = sp.csr_array(matrix, dtype=float)
-    if out.nnz:
-        scale = np.abs(out.data).max()
-        out.data[np.abs(out.data) <= ZERO_TOL * scale] = 0.0
-        out.eliminate_zeros()
+    out.eliminate_zeros()
     return out
 
 
@@ -465,15 +468,39 @@ def _substitute_algebraic_derivatives(
     )
 
 
+def _equilibrate(matrix: sp.csr_array) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column scalings r, c making every row and column of diag(r)·M·diag(c) peak at 1.
+
+    Element values span many decades (1 fF next to 1 kH): singularity is
+    judged on the equilibrated matrix, as LAPACK's expert drivers do.
+    """
+    abs_m = abs(sp.csr_array(matrix))
+    row_max = abs_m.max(axis=1).toarray().ravel()
+    r = np.where(row_max > 0, 1.0 / np.where(row_max > 0, row_max, 1.0), 1.0)
+    col_max = (sp.diags_array(r) @ abs_m).max(axis=0).toarray().ravel()
+    c = np.where(col_max > 0, 1.0 / np.where(col_max > 0, col_max, 1.0), 1.0)
+    return r, c
+
+
 def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
     """matrix⁻¹ rhs for a square sparse matrix, refusing (near-)singular ones.
 
-    Diagonal matrices are inverted directly; small ones densely with LAPACK's
-    reciprocal condition estimate; large ones with SuperLU.
+    The matrix is equilibrated first (rows, then columns, scaled to unit
+    maximum); diagonal matrices are then inverted directly, small ones
+    densely with LAPACK's reciprocal condition estimate, large ones with
+    SuperLU.
     """
     n = matrix.shape[0]
     if n == 0 or rhs.shape[1] == 0:
         return sp.csr_array((n, rhs.shape[1]))
+    r, c = _equilibrate(matrix)
+    scaled = sp.csr_array(sp.diags_array(r) @ matrix @ sp.diags_array(c))
+    rhs_scaled = sp.csr_array(sp.diags_array(r) @ rhs)
+    return _clean(sp.diags_array(c) @ _solve_equilibrated(scaled, rhs_scaled, what))
+
+
+def _solve_equilibrated(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
+    n = matrix.shape[0]
     coo = matrix.tocoo()
     if np.all(coo.row == coo.col) and coo.nnz == n:
         diag = matrix.diagonal()
@@ -501,14 +528,10 @@ def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
         raise SingularCircuitError(what)
     rhs_csc = sp.csc_array(rhs)
     nonzero_cols = np.flatnonzero(np.diff(rhs_csc.indptr))
-    blocks = []
     result = sp.lil_array((n, rhs.shape[1]))
     for start in range(0, len(nonzero_cols), 256):
         cols = nonzero_cols[start : start + 256]
-        sol = lu_sparse.solve(rhs_csc[:, cols].toarray())
-        blocks.append((cols, sol))
-    for cols, sol in blocks:
-        result[:, cols] = sol
+        result[:, cols] = lu_sparse.solve(rhs_csc[:, cols].toarray())
     return _clean(result)
 
 
@@ -547,7 +570,11 @@ def reduce_to_state_space(
         f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
     )
     rhs = sp.hstack([yb.x, yb.dx, yb.u, yb.du], format="csr")
-    solved = -_solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else sp.csr_array((0, rhs.shape[1]))
+    where = _first_location(netlist, involved)
+    try:
+        solved = -_solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else sp.csr_array((0, rhs.shape[1]))
+    except SingularCircuitError as exc:
+        raise SingularCircuitError(exc.message, where) from None
     nx_ = len(classes.x)
     splits = np.cumsum([nx_, nx_, m])
     P = _clean(solved[:, : splits[0]])
@@ -571,7 +598,10 @@ def reduce_to_state_space(
         "the capacitance/inductance matrix is singular for these values: the states are not "
         "independent" + (f" (check {', '.join(involved)})" if involved else " (check negative values)")
     )
-    solved_x = -_solve(mass, sp.hstack([n0, nu, nud], format="csr"), mass_msg)
+    try:
+        solved_x = -_solve(mass, sp.hstack([n0, nu, nud], format="csr"), mass_msg)
+    except SingularCircuitError as exc:
+        raise SingularCircuitError(exc.message, where) from None
     A = _clean(solved_x[:, :nx_])
     B = _clean(solved_x[:, nx_ : nx_ + m])
     K = _clean(solved_x[:, nx_ + m :])
@@ -604,6 +634,7 @@ def reduce_to_state_space(
         excess=_excess(circuit, tree, classes),
         shifts=_shifts(K_q, states, inputs),
         warnings=netlist.warnings,
+        passive=is_passive(netlist),
     )
     return StateSpaceModel(
         sp.csr_array(A_q),
@@ -704,9 +735,28 @@ def add_displacements(model: StateSpaceModel, probes: Sequence[Probe]) -> StateS
     )
 
 
+def is_passive(netlist: Netlist) -> bool:
+    """True when every element is passive (positive R, L, C; |k| < 1; transformers; sources)."""
+    for element in netlist.elements:
+        kind = element.kind
+        if kind in (Kind.RESISTOR, Kind.CAPACITOR, Kind.INDUCTOR) and element.value <= 0:
+            return False
+        if kind in (Kind.VCVS, Kind.VCCS, Kind.CCCS, Kind.CCVS):
+            return False
+    return True
+
+
 def state_name(element: Element) -> str:
     """Name of the state an element carries: ``q(C1)``, ``i(L1)``, ``p(m1)`` or ``f(k1)``."""
     return f"{state_prefix(element)}({element.name})"
+
+
+def _first_location(netlist: Netlist, involved: list[str]) -> SourceLocation:
+    """Where to point a whole-circuit error: the first controlled element, else the first element."""
+    for element in netlist.elements:
+        if element.label in involved:
+            return element.loc
+    return netlist.elements[0].loc
 
 
 def _controlled_labels(netlist: Netlist) -> list[str]:

@@ -84,6 +84,10 @@ class CompileInfo:
     integrators : tuple of str
         Displacement states added because an ``x(...)`` output asked for
         them (not part of the order of complexity).
+    passive : bool
+        Only positive R, L, C, couplings with |k| < 1, lossless transformers
+        and independent sources: the stored energy cannot grow, so no
+        eigenvalue has a positive real part.
     """
 
     order: int
@@ -92,6 +96,7 @@ class CompileInfo:
     shifts: tuple[StateShift, ...] = ()
     warnings: tuple[Diagnostic, ...] = ()
     integrators: tuple[str, ...] = ()
+    passive: bool = False
 
 
 def _readonly(matrix: sp.sparray) -> np.ndarray:

@@ -35,7 +35,9 @@ def save_figure(fig: Any, path: str) -> None:
 
 
 def _unit(name: str) -> str:
-    return "A" if name.startswith("i(") else "V"
+    """Electrical unit, or the mechanical quantity, of an output name."""
+    head = name.split("(", 1)[0]
+    return {"i": "A or N", "v": "V or m/s", "x": "m or rad", "angle": "rad"}.get(head, "")
 
 
 def validation_plot(report: Any, path: str) -> None:
@@ -60,5 +62,42 @@ def validation_plot(report: Any, path: str) -> None:
     bottom.set_ylabel("|model − ngspice| / peak")
     bottom.legend(fontsize=8, ncol=2)
     bottom.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def simulation_plot(result: Any, names: Any, title: str, path: str) -> None:
+    """The simulated outputs against time, one labelled line each."""
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(9, 5))
+    for j, name in enumerate(names):
+        ax.plot(result.time, result.outputs[:, j], label=name, linewidth=1.2)
+    units = sorted({_unit(n) for n in names})
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"output [{', '.join(units)}]")
+    ax.set_title(f"{title}\n({result.method}, {result.setting})", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def bench_plot(report: Any, path: str) -> None:
+    """Error against run time, log-log, one series per method."""
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    series: dict[str, list[tuple[float, float]]] = {}
+    for row in report.rows:
+        if row.status == "ok" and row.error > 0 and row.seconds > 0:
+            series.setdefault(row.method, []).append((row.seconds, max(row.error, 1e-17)))
+    for name, pts in series.items():
+        pts.sort()
+        style = "s--" if name.startswith("ngspice") else "o-"
+        ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, label=name)
+    ax.set_xlabel("wall time [s]")
+    ax.set_ylabel("max error / peak")
+    ax.set_title(f"{report.title[:70]}\n{report.nstates} states", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, path)

@@ -284,3 +284,84 @@ def validation_text(report: Any, title: str) -> str:
         bad = [c.name for c in report.comparisons if c.max_rel_error > report.rtol]
         out.append(f"FAIL: {', '.join(bad)} differ by more than {report.rtol:g} of their peak")
     return "\n".join(out) + "\n"
+
+
+def simulation_csv(result: Any, names: Sequence[str]) -> str:
+    """Time and outputs as CSV with a header row (full double precision)."""
+    header = ",".join(["time", *names])
+    rows = [
+        ",".join(repr(float(v)) for v in (t, *row))
+        for t, row in zip(result.time, result.outputs, strict=True)
+    ]
+    return header + "\n" + "\n".join(rows) + "\n"
+
+
+def simulation_dict(result: Any, model: StateSpaceModel, horizon: Any) -> dict[str, Any]:
+    """The JSON document for ``simulate --format json``."""
+    return {
+        "title": model.title,
+        "time": result.time.tolist(),
+        "outputs": {name: result.outputs[:, j].tolist() for j, name in enumerate(model.outputs)},
+        "method": result.method,
+        "setting": result.setting,
+        "seconds": result.seconds,
+        "status": result.status,
+        "stats": result.stats,
+        "horizon": {"tstep": horizon.tstep, "tstop": horizon.tstop, "source": horizon.source},
+    }
+
+
+def simulation_summary(result: Any, names: Sequence[str]) -> str:
+    """Per output: value at the end, minimum and maximum (the samples go to --csv or JSON)."""
+    width = max(8, *(len(n) for n in names)) if names else 8
+    lines = [f"  {'output':<{width}} {'final':>14} {'min':>14} {'max':>14}"]
+    for j, name in enumerate(names):
+        column = result.outputs[:, j]
+        lines.append(f"  {name:<{width}} {column[-1]:>14.8g} {column.min():>14.8g} {column.max():>14.8g}")
+    lines.append("(the samples: --csv FILE or --format json)")
+    return "\n".join(lines) + "\n"
+
+
+def bench_dict(report: Any) -> dict[str, Any]:
+    """The JSON document for ``bench --format json``."""
+    return {
+        "netlist": report.netlist,
+        "title": report.title,
+        "nstates": report.nstates,
+        "horizon": {"tstop": report.horizon.tstop, "points": report.points},
+        "reference": {
+            "method": report.reference.method,
+            "check": report.reference.check,
+            "agreement": report.reference.agreement,
+        },
+        "rows": [
+            {
+                "method": r.method,
+                "setting": r.setting,
+                "error": r.error,
+                "seconds": r.seconds,
+                "status": r.status,
+                "message": r.message,
+            }
+            for r in report.rows
+        ],
+    }
+
+
+def bench_text(report: Any) -> str:
+    """The ``bench`` table for people."""
+    ref = report.reference
+    out = [
+        report.title,
+        f"netlist: {report.netlist}; {report.nstates} states; horizon {report.horizon.tstop:g} s, "
+        f"scored at {report.points} grid steps",
+        f"reference: {ref.method}, checked against {ref.check}: agreement {ref.agreement:.2g}",
+        "",
+        f"  {'method':<14} {'setting':<44} {'error/peak':>11} {'seconds':>9}  status",
+    ]
+    for r in report.rows:
+        err = f"{r.error:.2g}" if math.isfinite(r.error) else "-"
+        sec = f"{r.seconds:.3f}" if math.isfinite(r.seconds) else "-"
+        note = r.status if r.status == "ok" else f"{r.status}: {r.message}"
+        out.append(f"  {r.method:<14} {r.setting:<44} {err:>11} {sec:>9}  {note}")
+    return "\n".join(out) + "\n"

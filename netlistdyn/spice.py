@@ -16,7 +16,6 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
-import multiprocessing
 import os
 import time
 from collections.abc import Sequence
@@ -29,6 +28,7 @@ from numpy.typing import NDArray
 
 from .netlist import GROUND, Element, Kind, Netlist
 from .probes import Probe
+from .processes import run_in_child
 
 INSTALL_HINT = (
     "ngspice is not available: install it with "
@@ -70,6 +70,7 @@ class SpiceSettings:
     vntol: float | None = None
     chgtol: float | None = None
     waveform_step: float | None = None
+    grid: int = 0  # > 0: force time points at tstop·k/grid (a 0 V PWL source's corners)
 
     def describe(self) -> str:
         """The settings as ngspice options, for reports."""
@@ -316,6 +317,12 @@ def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: Spice
     result: dict[str, Any] = {"ok": False, "message": "", "time": np.zeros(0), "outputs": {}, "seconds": 0.0}
     try:
         circuit = build_circuit(netlist, probes, settings.waveform_step or settings.tstep, settings.tstop)
+        if settings.grid:
+            # ngspice lands a step on every source breakpoint: a 0 V PWL source with a corner
+            # at each grid time puts those times in the output, with no interpolation.
+            corners = " ".join(f"{settings.tstop * k / settings.grid!r} 0" for k in range(settings.grid + 1))
+            circuit.V("netlistdyn_grid", "netlistdyn_grid", 0, f"PWL({corners})")
+            circuit.R("netlistdyn_grid", "netlistdyn_grid", 0, 1)
         simulator = circuit.simulator(simulator="ngspice-shared")
         simulator.options(**settings.options())
         result["netlist_text"] = str(simulator)
@@ -385,7 +392,7 @@ def run_transient(
     SpiceRun
         ``ok`` is False (with a message) when ngspice failed or timed out.
     """
-    result = _in_child(_child, (netlist, list(probes), settings), timeout)
+    result = run_in_child(_child, (netlist, list(probes), settings), timeout)
     if result is None:
         message = f"ngspice did not finish within {timeout:g} s" if timeout else "ngspice crashed"
         return SpiceRun(np.zeros(0), {}, float(timeout or 0.0), settings, False, message)
@@ -444,26 +451,7 @@ def run_polezero(netlist: Netlist, output: tuple[str, str], timeout: float = 60.
     source = netlist.sources[0]
     kind = "vol" if source.kind is Kind.VSOURCE else "cur"
     ports = (source.nodes[0], source.nodes[1], output[0], output[1])
-    result = _in_child(_pz_child, (netlist, ports, kind, source.key), timeout)
+    result = run_in_child(_pz_child, (netlist, ports, kind, source.key), timeout)
     if result is None:
         return PoleZeroRun(np.zeros(0, dtype=complex), False, "ngspice .pz did not finish")
     return PoleZeroRun(result["poles"], result["ok"], result["message"])
-
-
-def _in_child(target: Any, args: tuple[Any, ...], timeout: float | None) -> dict[str, Any] | None:
-    """Run ``target(conn, *args)`` in a child process and return what it sends."""
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    ctx = multiprocessing.get_context(method)
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=target, args=(child, *args), daemon=True)
-    proc.start()
-    child.close()
-    result: dict[str, Any] | None = None
-    if parent.poll(timeout):
-        with contextlib.suppress(EOFError):
-            result = parent.recv()
-    proc.join(timeout=5)
-    if proc.is_alive():
-        proc.kill()
-        proc.join()
-    return result

@@ -21,7 +21,7 @@ from .analysis import EigenAnalysis
 from .model import StateSpaceModel
 from .netlist import Netlist
 from .probes import Probe
-from .simulate import input_signals, simulate_foh
+from .simulate import Horizon, input_signals, simulate_foh
 from .spice import SpiceRun, SpiceSettings, run_polezero, run_transient
 
 #: Default pass threshold: max error relative to each waveform's peak (ngspice's default reltol).
@@ -39,15 +39,6 @@ STEPS_PER_HORIZON = 2000
 MAX_STEPS = 2_000_000
 #: Largest model for which ngspice's .pz poles are compared.
 PZ_MAX_STATES = 6
-
-
-@dataclass(frozen=True, slots=True)
-class Horizon:
-    """Transient horizon and output step (s), and where they came from."""
-
-    tstep: float
-    tstop: float
-    source: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,38 +108,6 @@ class ValidationReport:
     def passed(self) -> bool:
         """True when ngspice ran and every output is within ``rtol`` of its peak."""
         return self.spice.ok and all(c.max_rel_error <= self.rtol for c in self.comparisons)
-
-
-def choose_horizon(
-    netlist: Netlist, eig: EigenAnalysis | None, tstop: float | None, tstep: float | None
-) -> Horizon:
-    """``--tstop/--tstep``, else the netlist's ``.tran``, else from the eigenvalues.
-
-    From the eigenvalues: five of the slowest time constants, or ten periods
-    of the slowest oscillation if longer, capped at 10⁴ of the fastest time
-    scale so that a stiff circuit stays affordable; the step is 1/1000 of
-    the horizon.
-    """
-    if tstop is not None:
-        return Horizon(tstep or tstop / 1000, tstop, "command line")
-    if netlist.tran is not None:
-        return Horizon(tstep or netlist.tran.tstep, netlist.tran.tstop, ".tran in the netlist")
-    scales_slow, scales_fast = [], []
-    for mode in eig.modes if eig is not None else ():
-        lam = mode.value
-        if lam.real < 0:
-            scales_slow.append(5.0 / -lam.real)
-            scales_fast.append(1.0 / -lam.real)
-        if lam.imag:
-            period = 2 * math.pi / abs(lam.imag)
-            scales_slow.append(10 * period)
-            scales_fast.append(period)
-    if not scales_slow:
-        return Horizon(1e-3, 1.0, "default (no eigenvalue to scale by)")
-    horizon = min(max(scales_slow), 1e4 * min(scales_fast))
-    capped = horizon < max(scales_slow)
-    source = "from the eigenvalues" + (" (capped at 1e4 x the fastest time scale)" if capped else "")
-    return Horizon(tstep or horizon / 1000, horizon, source)
 
 
 def _time_scales(eig: EigenAnalysis | None) -> tuple[float, list[tuple[float, float]]]:
