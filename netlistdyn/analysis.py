@@ -151,23 +151,26 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     The computation itself is then exact to far below a double; what remains
     is the effect of the matrix entries' own rounding: eps times the
-    componentwise condition number |y|ᵀ|A||x| / |yᴴx|.
+    componentwise condition number |y|ᵀ|A||x| / |yᵀx|, evaluated in the same
+    extended precision (for a defective eigenvalue yᵀx cancels to ~1e-48,
+    which double precision cannot see).
     """
     import mpmath as mp
 
+    n = a.shape[0]
     with mp.workdps(REFINE_DIGITS):
         values, left, right = mp.eig(mp.matrix(a.tolist()), left=True, right=True)
+        abs_a = mp.matrix([[abs(mp.mpf(v)) for v in row] for row in a.tolist()])
         w = np.array([complex(v) for v in values])
-        vl = np.array([[complex(left[i, j]) for j in range(a.shape[0])] for i in range(a.shape[0])])
-        vr = np.array([[complex(right[i, j]) for j in range(a.shape[0])] for i in range(a.shape[0])])
-    # mpmath's left eigenvectors are rows (y A = λ y): transpose and conjugate to columns.
-    vl = vl.T.conj()
-    abs_a = np.abs(a)
-    overlap = np.abs(np.einsum("ij,ij->j", vl.conj(), vr))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cond = np.einsum("ij,ij->j", np.abs(vl), abs_a @ np.abs(vr)) / overlap
-    abs_err = np.maximum(EPS * np.where(np.isfinite(cond), cond, np.inf), 1e-30 * np.abs(w))
-    return w, abs_err
+        abs_err = np.empty(n)
+        for k in range(n):
+            y = left[k, :]
+            x = right[:, k]
+            overlap = abs(sum(y[i] * x[i] for i in range(n)))
+            weight = sum(abs(y[i]) * sum(abs_a[i, j] * abs(x[j]) for j in range(n)) for i in range(n))
+            cond = weight / overlap if overlap > 0 else mp.inf
+            abs_err[k] = float(mp.mpf(EPS) * cond) if cond != mp.inf else math.inf
+    return w, np.maximum(abs_err, 1e-30 * np.abs(w))
 
 
 def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:

@@ -110,8 +110,37 @@ def input_signals(netlist: Netlist, tstep: float, tstop: float) -> InputSignals:
     return InputSignals(waves, np.asarray(points), smooth)
 
 
+#: Largest condition number of the eigenvector matrix for which propagation is modal.
+MODAL_COND_LIMIT = 1e4
+
+
+def _phi12(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """φ1(z) = (e^z − 1)/z and φ2(z) = (e^z − 1 − z)/z², without cancellation for small |z|."""
+    small = np.abs(z) < 0.5
+    safe = np.where(small, 1.0, z)
+    phi1 = np.where(small, 0.0, np.expm1(safe) / safe)
+    phi2 = np.where(small, 0.0, (np.expm1(safe) - safe) / safe**2)
+    term1 = np.ones_like(z)
+    term2 = np.full_like(z, 0.5)
+    series1 = np.zeros_like(z)
+    series2 = np.zeros_like(z)
+    for k in range(1, 25):  # Taylor: φ1 = Σ z^k/(k+1)!, φ2 = Σ z^k/(k+2)!
+        series1 = series1 + term1
+        series2 = series2 + term2
+        term1 = term1 * z / (k + 1)
+        term2 = term2 * z / (k + 2)
+    return np.where(small, series1, phi1), np.where(small, series2, phi2)
+
+
 class FohPropagator:
     """Cached exact first-order-hold propagators of one model.
+
+    Modal when the balanced A has a well-conditioned eigenvector matrix
+    (cond below :data:`MODAL_COND_LIMIT`): Φ = V e^{Λh} V⁻¹ and the input integrals from
+    φ-functions of each λh, which stay accurate however stiff the step
+    (the augmented ``expm`` loses about eps·‖Ah‖, 2.5e-9 of the response for
+    Circuit 1 with R = 1e-9 over 7 s steps). Otherwise the augmented matrix
+    exponential (Van Loan).
 
     Parameters
     ----------
@@ -124,6 +153,26 @@ class FohPropagator:
         self.B = np.asarray(B, dtype=float)
         self.n, self.m = self.B.shape
         self._cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._modal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        if self.n:
+            try:
+                # Balance first (a diagonal similarity by powers of two, exact): element values
+                # spanning many decades otherwise make the eigenvectors look ill-conditioned.
+                balanced, scaling = sla.matrix_balance(self.A, permute=False, separate=True)
+                t = scaling[0]
+                lam, vecs = np.linalg.eig(balanced)
+                if np.linalg.cond(vecs) < MODAL_COND_LIMIT:
+                    inv = np.linalg.inv(vecs)
+                    left = vecs * t[:, None]  # V = T·Vb
+                    right = inv / t[None, :]  # V⁻¹ = Vb⁻¹·T⁻¹
+                    self._modal = (lam, left, right, right @ self.B)
+            except (np.linalg.LinAlgError, ValueError):
+                self._modal = None
+
+    @property
+    def modal(self) -> bool:
+        """True when propagation uses the eigendecomposition."""
+        return self._modal is not None
 
     def matrices(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Φ, Γ0, Γ1) with x(t+h) = Φ x(t) + Γ0 u(t) + Γ1 u(t+h) for linear u."""
@@ -131,6 +180,17 @@ class FohPropagator:
         hit = self._cache.get(key)
         if hit is not None:
             return hit
+        if self._modal is not None:
+            lam, vecs, inv, inv_b = self._modal
+            z = lam * key
+            phi1, phi2 = _phi12(z)
+            phi = np.real((vecs * np.exp(z)) @ inv)
+            g1 = np.real(vecs @ (key * phi1[:, None] * inv_b))
+            g2 = np.real(vecs @ (key * phi2[:, None] * inv_b))
+            result = (phi, g1 - g2, g2)
+            if len(self._cache) < 100_000:
+                self._cache[key] = result
+            return result
         n, m = self.n, self.m
         big = np.zeros((n + 2 * m, n + 2 * m))
         big[:n, :n] = self.A * key

@@ -1,0 +1,154 @@
+"""Simulation methods (issue 5): each method's accuracy against independent references.
+
+Named tolerances and why:
+* EXACT_RTOL 1e-11: the dense method is exact for piecewise-linear inputs up
+  to rounding in expm (≈1e-14 here); the reference is an mpmath matrix
+  exponential at 40 digits.
+* RATIONAL_RTOL 1e-9: the Padé stepper at rtol=1e-10 controls its per-step
+  error to 1e-10 of the peak state; accumulated over ≤ 2000 steps.
+* KRYLOV_RTOL 1e-10: expm_multiply targets double precision per interval.
+* IVP_RTOL 1e-5 at rtol=1e-9: solve_ivp controls local error only; the
+  global error measured here is 1e-8..1e-7, the bound leaves a margin.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+from netlistdyn import integrators
+from netlistdyn.integrators import pade_factors, pade_factors_exact
+from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.simulate import input_signals
+
+from .conftest import NETLISTS, compile_file, compile_string
+
+EXACT_RTOL = 1e-11
+RATIONAL_RTOL = 1e-9
+KRYLOV_RTOL = 1e-10
+IVP_RTOL = 1e-5
+DOP853_RTOL = 1e-4  # measured 3.8e-5: its error control is local and the case is mildly stiff
+
+
+def mp_step_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, times, digits=40):
+    """y(t) for a unit step on every input from zero state: C A⁻¹(e^{At} − I) B + D, in mpmath."""
+    with mp.workdps(digits):
+        a, b, c = mp.matrix(A.tolist()), mp.matrix(B.tolist()), mp.matrix(C.tolist())
+        inv = a**-1
+        out = []
+        for t in times:
+            x = inv * (mp.expm(a * t) - mp.eye(A.shape[0])) * b
+            y = c * x
+            out.append([float(y[i, 0]) + float(D[i, 0]) for i in range(C.shape[0])])
+    return np.array(out)
+
+
+def rel_err(y: np.ndarray, ref: np.ndarray) -> float:
+    peak = np.max(np.abs(ref), axis=0)
+    return float(np.max(np.abs(y - ref) / np.where(peak > 0, peak, 1.0)))
+
+
+def test_stored_pade_factors_match_extended_precision() -> None:
+    for diagonal in (False, True):
+        stored = pade_factors(diagonal)
+        exact = pade_factors_exact(diagonal=diagonal)
+        assert len(stored) == len(exact) == 6
+        for (p, a, c), (pe, ae, ce) in zip(stored, exact, strict=True):
+            assert abs(p - pe) <= 1e-15 * abs(pe) and abs(a - ae) <= 1e-15 * abs(ae) and c == ce
+
+
+@pytest.mark.parametrize("diagonal", [False, True])
+def test_pade_approximates_the_exponential(diagonal: bool) -> None:
+    factors = pade_factors(diagonal)
+
+    def R(z: complex) -> complex:
+        return complex(np.prod([c + a / (z - p) + np.conj(a) / (z - np.conj(p)) for p, a, c in factors]))
+
+    for z in [0.5j, 2j, 4j, -1 + 3j, -3.5, -0.3 + 4.2j]:
+        assert abs(R(z) - np.exp(z)) <= 1e-13, z
+    if not diagonal:
+        assert abs(R(-1e9)) < 1e-7  # L-stable: stiff modes are damped
+    else:
+        assert abs(abs(R(50j)) - 1) < 1e-12  # modulus one on the imaginary axis
+
+
+@pytest.mark.parametrize("R", [1e-3, 100.0, 1e-9])
+def test_exact_step_response_circuit1(R: float) -> None:
+    net = parse_file(NETLISTS / "circuit1.cir", {"R1": R, "R2": R})
+    model = compile_file("circuit1.cir", {"R1": R, "R2": R}, ["v(a)", "i(L1)"])
+    times = np.array([0.0, 1e-4, 1e-3, 0.5, 3.0, 10.0])
+    ref = mp_step_response(model.A, model.B, model.C, model.D, times)
+    result = integrators.run(model, input_signals(net, 1e-3, 10.0), times, "exact")
+    assert result.ok
+    assert rel_err(result.outputs, ref) <= EXACT_RTOL
+
+
+LADDER = "ladder\nVin in 0 DC 1\n" + "".join(
+    f"R{k} {'in' if k == 1 else f'n{k - 1}'} m{k} 1\nL{k} m{k} n{k} 1m\nC{k} n{k} 0 1u\n"
+    for k in range(1, 21)
+)
+
+
+@pytest.mark.parametrize("method", ["rational", "krylov"])
+def test_large_model_methods_match_exact_on_a_ladder(method: str) -> None:
+    net = parse_text(LADDER)
+    model = compile_string(LADDER, ["v(n20)", "v(n10)", "i(L1)"])
+    times = np.linspace(0, 2e-3, 401)
+    signals = input_signals(net, 5e-6, 2e-3)
+    exact = integrators.run(model, signals, times, "exact")
+    other = integrators.run(model, signals, times, method, rtol=1e-10)
+    assert other.ok, other.message
+    assert rel_err(other.outputs, exact.outputs) <= (RATIONAL_RTOL if method == "rational" else KRYLOV_RTOL)
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF", "LSODA", "DOP853"])
+def test_solve_ivp_methods(method: str) -> None:
+    net = parse_file(NETLISTS / "circuit2.cir", {"R1": 100, "R2": 100})
+    model = compile_file("circuit2.cir", {"R1": 100, "R2": 100}, ["v(a)", "v(b)"])
+    times = np.linspace(0, 20, 201)
+    signals = input_signals(net, 0.1, 20)
+    exact = integrators.run(model, signals, times, "exact")
+    result = integrators.run(model, signals, times, method, rtol=1e-9, atol=1e-12)
+    assert result.ok, result.message
+    assert rel_err(result.outputs, exact.outputs) <= (DOP853_RTOL if method == "DOP853" else IVP_RTOL)
+
+
+def test_breakpoints_of_every_waveform_are_respected() -> None:
+    net = parse_file(NETLISTS / "waveforms.cir")
+    outputs = [f"v(o{k})" for k in range(1, 6)]
+    model = compile_file("waveforms.cir", outputs=outputs)
+    times = np.linspace(0, 2e-3, 201)
+    signals = input_signals(net, 1e-6, 2e-3)
+    exact = integrators.run(model, signals, times, "exact")
+    rational = integrators.run(model, signals, times, "rational", rtol=1e-11)
+    assert rel_err(rational.outputs, exact.outputs) <= RATIONAL_RTOL
+
+
+def test_explicit_method_on_stiff_model_is_refused() -> None:
+    net = parse_file(NETLISTS / "stress" / "circuit1_stiff.cir", {"R": 1e-9})
+    model = compile_file("stress/circuit1_stiff.cir", {"R": 1e-9}, ["v(a)"])
+    times = np.linspace(0, 10, 11)
+    result = integrators.run(model, input_signals(net, 1e-3, 10), times, "RK45")
+    assert result.status == "refused"
+    assert "stiff" in result.message and "Radau" in result.message
+
+
+def test_exploding_solution_is_reported_not_returned() -> None:
+    text = "boom\nI1 0 a DC 1\nC1 a 0 1\nR1 a 0 -1m\n"  # λ = +1000 1/s: e^(1000·10) overflows
+    net = parse_text(text)
+    model = compile_string(text, ["v(a)"])
+    result = integrators.run(model, input_signals(net, 0.1, 10), np.linspace(0, 10, 101), "exact")
+    assert result.status == "diverged"
+
+
+def test_initial_condition_lc_tank() -> None:
+    model = compile_string("lc\nC1 a 0 1\nL1 a 0 1\nR9 a 0 1e12\n", ["v(a)"])
+    net = parse_text("lc\nC1 a 0 1\nL1 a 0 1\nR9 a 0 1e12\n")
+    times = np.linspace(0, 2 * math.pi, 9)
+    result = integrators.run(
+        model, input_signals(net, 0.1, times[-1]), times, "exact", x0=np.array([1.0, 0.0])
+    )
+    np.testing.assert_allclose(result.outputs[:, 0], np.cos(times), atol=1e-9)
