@@ -98,13 +98,13 @@ def test_lc_energy_conserved_over_ten_thousand_periods() -> None:
     assert np.max(np.abs(after - after[0])) / after[0] <= 1e-9  # exact propagation is unitary here
 
 
-def test_radau_energy_drift_is_bounded_over_a_hundred_periods() -> None:
+def test_radau_energy_drift_is_bounded_over_twenty_periods() -> None:
     net = parse_file(NETLISTS / "stress" / "lc_tank.cir")
     model = compile_file("stress/lc_tank.cir", outputs=["v(a)", "i(L1)"])
-    tstop = 100 * 2 * math.pi
-    times = np.linspace(0, tstop, 2001)
+    tstop = 20 * 2 * math.pi
+    times = np.linspace(0, tstop, 401)
     signals = input_signals(net, 1.0, tstop)
-    result = integrators.run(model, signals, times, "Radau", rtol=1e-10, atol=1e-12)
+    result = integrators.run(model, signals, times, "Radau", rtol=1e-9, atol=1e-12)
     v, i = result.outputs[:, 0], result.outputs[:, 1]
     after = (0.5 * v**2 + 0.5 * i**2)[times > 1.0]
     assert np.max(np.abs(after - after[0])) / after[0] <= 1e-6  # Radau damps slightly; measured ~1e-8
