@@ -170,7 +170,10 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             weight = sum(abs(y[i]) * sum(abs_a[i, j] * abs(x[j]) for j in range(n)) for i in range(n))
             cond = weight / overlap if overlap > 0 else mp.inf
             abs_err[k] = float(mp.mpf(EPS) * cond) if cond != mp.inf else math.inf
-    return w, np.maximum(abs_err, 1e-30 * np.abs(w))
+    # The extended-precision computation has its own rounding, ~10^-(digits-5)·‖A‖ (a structural
+    # zero eigenvalue comes out as ±1e-52 at 50 digits): no eigenvalue is more accurate than that.
+    computation = 10.0 ** (5 - REFINE_DIGITS) * float(np.max(np.sum(np.abs(a), axis=1)))
+    return w, np.maximum(abs_err, computation)
 
 
 def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:
