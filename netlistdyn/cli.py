@@ -134,27 +134,77 @@ out_option = click.option(
     show_default=True,
     help="Eigenvalues: all (dense), extreme (sparse, large models), auto by size, or none.",
 )
+@click.option(
+    "--control",
+    "control_report",
+    is_flag=True,
+    help="Controllability/observability (PBH), uncontrollable/unobservable modes, "
+    "transfer functions with poles, zeros and DC gain.",
+)
+@click.option("--minimal", is_flag=True, help="Drop the states that do not reach the outputs; say how many.")
+@click.option(
+    "--save",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Save the model as .json, .npz or .mat (with labels).",
+)
 @out_option
 def analyze(
-    netlist: str, outputs: tuple[str, ...], params: tuple[str, ...], fmt: str, eig: str, out: str | None
+    netlist: str,
+    outputs: tuple[str, ...],
+    params: tuple[str, ...],
+    fmt: str,
+    eig: str,
+    control_report: bool,
+    minimal: bool,
+    save: str | None,
+    out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
     from .analysis import analyze_eigenvalues
     from .formulate import compile_netlist
     from .parser import parse_file
-    from .report import model_dict, text_report, to_json
+    from .report import control_dict, control_text, model_dict, text_report, to_json
 
     def body() -> int:
         parsed = parse_file(netlist, parse_param_overrides(params))
         model = compile_netlist(parsed, list(outputs) or None)
         _print_warnings(model.info.warnings)
+        notes: list[str] = []
+        if minimal or control_report:
+            from . import control
+
+            if model.nstates > 400:
+                raise UsageError("--control and --minimal are for models of up to 400 states")
+            structure = control.structure(model)
+            if minimal:
+                model, dropped = control.minimal(model)
+                gone = sorted({*structure.uncontrollable, *structure.unobservable}, key=abs)
+                notes.append(
+                    f"--minimal dropped {dropped} state(s)"
+                    + (f" (modes {', '.join(f'{v:.6g}' for v in gone)})" if dropped else "")
+                )
+                structure = control.structure(model)
+            tfs = control.transfer_functions(model) if control_report else []
         analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig)
+        if save:
+            from .exports import save_model
+
+            save_model(model, save)
         if fmt == "json":
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist
+            if control_report:
+                doc["control"] = control_dict(structure, tfs)
+            if notes:
+                doc["notes"] = notes
             emit(to_json(doc), out)
         else:
-            emit(text_report(model, analysis, netlist), out)
+            text = text_report(model, analysis, netlist)
+            if control_report:
+                text += control_text(structure, tfs)
+            text += "".join(f"note: {n}\n" for n in notes)
+            emit(text, out)
         return 0
 
     run_guarded(body)
@@ -425,6 +475,52 @@ def bench(
 
             bench_plot(report, plot)
         emit(to_json(bench_dict(report)) if fmt == "json" else bench_text(report), out)
+        return 0
+
+    run_guarded(body)
+
+
+@main.command()
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=V1,V2|log:a:b:n|lin:a:b:n",
+    help="Values of a .param to sweep (repeatable; equal-length lists go together).",
+)
+@output_option
+@click.option("--jobs", type=int, default=1, show_default=True, help="Parallel processes.")
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="PNG of the eigenvalues against the swept parameter (root locus).",
+)
+@format_option
+@out_option
+def sweep(
+    netlist: str,
+    params: tuple[str, ...],
+    outputs: tuple[str, ...],
+    jobs: int,
+    plot: str | None,
+    fmt: str,
+    out: str | None,
+) -> None:
+    """Eigenvalues and stability for each case of a parameter sweep."""
+
+    def body() -> int:
+        from .report import sweep_text, to_json
+        from .sweep import expand_cases, run_sweep
+
+        cases = expand_cases(params)
+        result = run_sweep(netlist, cases, list(outputs) or None, max(jobs, 1))
+        if plot:
+            from .plots import sweep_plot
+
+            sweep_plot(result, plot)
+        emit(to_json({"netlist": netlist, "cases": result}) if fmt == "json" else sweep_text(result), out)
         return 0
 
     run_guarded(body)

@@ -195,6 +195,14 @@ class StateSpaceModel:
         """True when some output depends on an input's derivative."""
         return self.D1_sparse.count_nonzero() > 0
 
+    def to_scipy(self) -> object:
+        """``scipy.signal.StateSpace`` of the model (see :func:`to_scipy`)."""
+        return to_scipy(self)
+
+    def to_control(self) -> object:
+        """``control.StateSpace`` with labels (see :func:`to_control`)."""
+        return to_control(self)
+
     def transfer_function(self, s: complex) -> np.ndarray:
         """Evaluate G(s) = C (sI − A)⁻¹ B + D + s D1 at one complex frequency.
 
@@ -215,3 +223,33 @@ class StateSpaceModel:
         else:
             g = np.zeros((self.noutputs, self.ninputs), dtype=complex)
         return g + self.D + s * self.D1
+
+
+def to_scipy(model: StateSpaceModel) -> object:
+    """The model as ``scipy.signal.StateSpace`` (labels are not carried by scipy)."""
+    import scipy.signal as sig
+
+    return sig.StateSpace(np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D))
+
+
+def to_control(model: StateSpaceModel) -> object:
+    """The model as ``control.StateSpace`` with named states, inputs and outputs.
+
+    Raises
+    ------
+    ImportError
+        When python-control is not installed (``pip install control``).
+    """
+    try:
+        import control
+    except ImportError:
+        raise ImportError("python-control is not installed: pip install control") from None
+    return control.ss(
+        np.array(model.A),
+        np.array(model.B),
+        np.array(model.C),
+        np.array(model.D),
+        states=list(model.states),
+        inputs=list(model.inputs),
+        outputs=list(model.outputs),
+    )

@@ -101,3 +101,24 @@ def bench_plot(report: Any, path: str) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def sweep_plot(cases: Any, path: str) -> None:
+    """Eigenvalues in the complex plane, coloured by case (a root locus)."""
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(7, 5.5))
+    good = [c for c in cases if "eigenvalues" in c]
+    colours = plt.cm.viridis(np.linspace(0, 1, max(len(good), 2)))
+    for colour, case in zip(colours, good, strict=False):
+        values = np.array(case["eigenvalues"])
+        label = ", ".join(f"{k}={v:g}" for k, v in case["params"].items())
+        ax.plot(values[:, 0], values[:, 1], "x", color=colour, label=label)
+    ax.axvline(0, color="k", linewidth=0.5)
+    ax.set_xlabel("Re λ [1/s]")
+    ax.set_ylabel("Im λ [1/s]")
+    ax.set_xscale("symlog", linthresh=1e-3)
+    ax.grid(True, alpha=0.3)
+    if len(good) <= 12:
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)

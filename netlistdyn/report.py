@@ -365,3 +365,68 @@ def bench_text(report: Any) -> str:
         note = r.status if r.status == "ok" else f"{r.status}: {r.message}"
         out.append(f"  {r.method:<14} {r.setting:<44} {err:>11} {sec:>9}  {note}")
     return "\n".join(out) + "\n"
+
+
+def control_dict(structure: Any, tfs: Sequence[Any]) -> dict[str, Any]:
+    """JSON for ``analyze --control``."""
+    return {
+        "controllable": structure.controllable,
+        "observable": structure.observable,
+        "uncontrollable_modes": [[v.real, v.imag] for v in structure.uncontrollable],
+        "unobservable_modes": [[v.real, v.imag] for v in structure.unobservable],
+        "krylov_ranks": list(structure.krylov_ranks),
+        "rank_tolerance": structure.tolerance,
+        "transfer_functions": [
+            {
+                "output": t.output,
+                "input": t.input,
+                "num": list(t.num),
+                "den": list(t.den),
+                "poles": [[p.real, p.imag] for p in t.poles],
+                "zeros": [[z.real, z.imag] for z in t.zeros],
+                "dc_gain": t.dc_gain,
+            }
+            for t in tfs
+        ],
+    }
+
+
+def control_text(structure: Any, tfs: Sequence[Any]) -> str:
+    """Text for ``analyze --control``."""
+
+    def modes(values: Sequence[complex]) -> str:
+        return ", ".join(f"{v:.6g}" for v in values)
+
+    out = [
+        "",
+        f"controllability (PBH, singular-value tolerance {structure.tolerance:g}): "
+        + (
+            "controllable"
+            if structure.controllable
+            else f"uncontrollable modes {modes(structure.uncontrollable)}"
+        ),
+        "observability (PBH): "
+        + ("observable" if structure.observable else f"unobservable modes {modes(structure.unobservable)}"),
+    ]
+    if not structure.krylov_agrees:
+        out.append(
+            f"note: the Krylov ranks ({structure.krylov_ranks[0]}, {structure.krylov_ranks[1]} of "
+            f"{structure.nstates}) disagree with PBH; PBH is the more reliable test"
+        )
+    for t in tfs:
+        out.append(t.text())
+        out.append(f"  DC gain {t.dc_gain:.6g}; poles {modes(t.poles) or '-'}; zeros {modes(t.zeros) or '-'}")
+    return "\n".join(out) + "\n"
+
+
+def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
+    """A table of eigenvalues per case."""
+    out = []
+    for case in cases:
+        params = ", ".join(f"{k}={v:g}" for k, v in case["params"].items())
+        if "error" in case:
+            out.append(f"{params}: {case['error']}")
+            continue
+        values = ", ".join(f"{complex(*e):.8g}" for e in case["eigenvalues"])
+        out.append(f"{params}: {case['stability']}; eigenvalues {values}")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,239 @@
+"""Control analysis of a compiled model: controllability, observability, minimal
+realisation and transfer functions.
+
+Controllability and observability use the PBH test: eigenvalue λ is
+uncontrollable when [A − λI, B] loses rank, unobservable when [A − λI; C]
+does. Rank is judged by the smallest singular value relative to the largest,
+with :data:`RANK_RTOL`. The Krylov ranks (of [B AB … Aⁿ⁻¹B] and its dual,
+columns normalised) are computed too and shown only when they disagree with
+PBH, which is the more reliable of the two for stiff models.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.signal as sig
+
+from .model import CompileInfo, StateSpaceModel
+
+#: Relative singular-value threshold for numerical rank.
+RANK_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Structure:
+    """Controllability and observability of a model.
+
+    Attributes
+    ----------
+    uncontrollable, unobservable : tuple of complex
+        Eigenvalues that fail the PBH test (1/s).
+    controllable, observable : bool
+    krylov_ranks : tuple of int
+        Ranks of the controllability and observability matrices.
+    tolerance : float
+        The relative singular-value threshold used.
+    """
+
+    uncontrollable: tuple[complex, ...]
+    unobservable: tuple[complex, ...]
+    krylov_ranks: tuple[int, int]
+    nstates: int
+    tolerance: float = RANK_RTOL
+
+    @property
+    def controllable(self) -> bool:
+        """True when every mode passes the PBH controllability test."""
+        return not self.uncontrollable
+
+    @property
+    def observable(self) -> bool:
+        """True when every mode passes the PBH observability test."""
+        return not self.unobservable
+
+    @property
+    def krylov_agrees(self) -> bool:
+        """True when the Krylov ranks tell the same story as PBH."""
+        n = self.nstates
+        return (self.krylov_ranks[0] == n) == self.controllable and (
+            self.krylov_ranks[1] == n
+        ) == self.observable
+
+
+def _rank_deficient(matrix: np.ndarray, tol: float) -> bool:
+    values = sla.svdvals(matrix)
+    return values.size == 0 or values[-1] <= tol * max(values[0], 1e-300)
+
+
+def _krylov_rank(A: np.ndarray, B: np.ndarray, tol: float) -> int:
+    n = A.shape[0]
+    blocks, block = [], B
+    for _ in range(n):
+        blocks.append(block)
+        block = A @ block
+    K = np.hstack(blocks) if blocks else np.zeros((n, 0))
+    norms = np.linalg.norm(K, axis=0)
+    K = K[:, norms > 0] / norms[norms > 0]
+    if K.size == 0:
+        return 0
+    values = sla.svdvals(K)
+    return int(np.sum(values > tol * values[0]))
+
+
+def _distinct(values: np.ndarray) -> list[complex]:
+    out: list[complex] = []
+    for v in values:
+        if all(abs(v - w) > 1e-9 * max(1.0, abs(v)) for w in out):
+            out.append(complex(v))
+    return out
+
+
+def structure(model: StateSpaceModel, tol: float = RANK_RTOL) -> Structure:
+    """PBH controllability and observability of ``model``."""
+    A, B, C = model.A, model.B, model.C
+    n = model.nstates
+    eye = np.eye(n)
+    unc, uno = [], []
+    for lam in _distinct(np.linalg.eigvals(A)) if n else []:
+        if _rank_deficient(np.hstack([A - lam * eye, B]), tol):
+            unc.append(lam)
+        if _rank_deficient(np.vstack([A - lam * eye, C]), tol):
+            uno.append(lam)
+    ranks = (_krylov_rank(A, B, tol), _krylov_rank(A.T, C.T, tol))
+    return Structure(tuple(unc), tuple(uno), ranks, n, tol)
+
+
+def minimal(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceModel, int]:
+    """Minimal realisation: keep the controllable part, then its observable part.
+
+    Orthonormal bases of the reachable and observable subspaces come from
+    SVDs of the column-normalised Krylov matrices. The states of the result
+    are combinations of the original ones and are named ``z1``, ``z2``...
+
+    Returns
+    -------
+    model : StateSpaceModel
+        The reduced model (the original when it is already minimal).
+    dropped : int
+        Number of states removed.
+    """
+    A, B, C = model.A, model.B, model.C
+    basis = _range_basis(A, B, tol)
+    A1, B1, C1 = basis.T @ A @ basis, basis.T @ B, C @ basis
+    obs = _range_basis(A1.T, C1.T, tol)
+    A2, B2, C2 = obs.T @ A1 @ obs, obs.T @ B1, C1 @ obs
+    dropped = model.nstates - A2.shape[0]
+    if dropped == 0:
+        return model, 0
+    import scipy.sparse as sp
+
+    names = tuple(f"z{k + 1}" for k in range(A2.shape[0]))
+    info = CompileInfo(order=A2.shape[0], warnings=model.info.warnings)
+    reduced = StateSpaceModel(
+        sp.csr_array(A2),
+        sp.csr_array(B2),
+        sp.csr_array(C2),
+        model.D_sparse,
+        model.D1_sparse,
+        names,
+        model.inputs,
+        model.outputs,
+        model.title,
+        info,
+    )
+    return reduced, dropped
+
+
+def _range_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
+    n = A.shape[0]
+    blocks, block = [], B
+    for _ in range(n):
+        blocks.append(block)
+        block = A @ block
+    K = np.hstack(blocks) if blocks else np.zeros((n, 0))
+    norms = np.linalg.norm(K, axis=0)
+    K = K[:, norms > 0] / norms[norms > 0]
+    if K.size == 0:
+        return np.zeros((n, 0))
+    U, values, _ = sla.svd(K, full_matrices=False)
+    rank = int(np.sum(values > tol * values[0]))
+    return U[:, :rank]
+
+
+@dataclass(frozen=True)
+class TransferFunction:
+    """One input–output transfer function G(s) = num(s)/den(s) (coefficients, highest power first)."""
+
+    output: str
+    input: str
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+    poles: tuple[complex, ...]
+    zeros: tuple[complex, ...]
+    dc_gain: float
+
+    def text(self, digits: int = 6) -> str:
+        """``(a s^2 + b s + c) / (s^3 + ...)``."""
+
+        def poly(coeffs: tuple[float, ...]) -> str:
+            deg = len(coeffs) - 1
+            terms = []
+            for k, c in enumerate(coeffs):
+                if abs(c) <= 1e-12 * max(abs(x) for x in coeffs):
+                    continue
+                power = deg - k
+                mono = "" if power == 0 else ("s" if power == 1 else f"s^{power}")
+                terms.append(f"{c:+.{digits}g}{'·' + mono if mono else ''}")
+            return " ".join(terms) if terms else "0"
+
+        return f"{self.output}/{self.input} = ({poly(self.num)}) / ({poly(self.den)})"
+
+
+def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
+    """G(s) for every input–output pair, normalised to a monic denominator.
+
+    Uses scipy's ``ss2tf`` (characteristic polynomial of A and the numerators
+    from it). The coefficients are not reduced; the poles and zeros are the
+    roots after cancelling common ones (within 1e-6 relative), i.e. those of
+    the reduced transfer function.
+    """
+    out = []
+    for j, name_in in enumerate(model.inputs):
+        num, den = (
+            sig.ss2tf(model.A, model.B, model.C, model.D, input=j)
+            if model.nstates
+            else (model.D[:, [j]], np.array([1.0]))
+        )
+        den = np.atleast_1d(den)
+        lead = den[0]
+        for i, name_out in enumerate(model.outputs):
+            n = np.atleast_2d(num)[i] / lead
+            big = np.max(np.abs(n)) if n.size else 0.0
+            first = np.flatnonzero(np.abs(n) > 1e-12 * big)  # leading rounding residue is not a term
+            n = n[first[0]:] if first.size else np.zeros(0)
+            d = den / lead
+            if n.size == 0:
+                n = np.array([0.0])
+            zeros = list(np.roots(n)) if n.size > 1 else []
+            poles = list(np.roots(d)) if d.size > 1 else []
+            for z in list(zeros):  # cancel common roots (modes the pair does not see)
+                match = next((p for p in poles if abs(p - z) <= 1e-6 * max(1.0, abs(z))), None)
+                if match is not None:
+                    zeros.remove(z)
+                    poles.remove(match)
+            dc = float(n[-1] / d[-1]) if d[-1] != 0 else float("inf")
+            out.append(
+                TransferFunction(
+                    name_out,
+                    name_in,
+                    tuple(float(x) for x in n),
+                    tuple(float(x) for x in d),
+                    tuple(complex(p) for p in poles),
+                    tuple(complex(z) for z in zeros),
+                    dc,
+                )
+            )
+    return out

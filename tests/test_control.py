@@ -1,0 +1,129 @@
+"""Control analysis, sweeps and exports (issue 6, first part).
+
+TF_RTOL 1e-4 against seed 002's printed coefficients (printed to 4-6
+digits); 1e-9 where compared with an independent evaluation of C(sI−A)⁻¹B.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from netlistdyn import control
+from netlistdyn.cli import main
+from netlistdyn.exports import load_model, save_model
+
+from .conftest import NETLISTS, compile_file, match_spectra
+
+
+def test_cart_transfer_function_matches_seed_002() -> None:
+    model = compile_file("dipc.cir", outputs=["x(cart)"])
+    (tf,) = control.transfer_functions(model)
+    np.testing.assert_allclose(tf.num, [0.6667, 0, -54.5, 0, 427.716], rtol=1e-4, atol=1e-9)
+    np.testing.assert_allclose(tf.den, [1, 0, -98.1, 0, 1176.2, 0, 0], rtol=1e-4, atol=1e-9)
+    for s in (0.5j, 2.0 + 1.0j):
+        value = np.polyval(tf.num, s) / np.polyval(tf.den, s)
+        assert value == pytest.approx(model.transfer_function(s)[0, 0], rel=1e-9)
+
+
+def test_cart_with_positions_is_controllable_and_observable() -> None:
+    model = compile_file("dipc.cir", outputs=["x(cart)", "angle(r1)", "angle(r2)"])
+    structure = control.structure(model)
+    assert structure.controllable and structure.observable
+    assert structure.krylov_agrees
+
+
+def test_balanced_branches_mode_is_named_and_removed() -> None:
+    model = compile_file("balanced.cir", outputs=["v(a)"])
+    structure = control.structure(model)
+    assert len(structure.uncontrollable) == 1 and len(structure.unobservable) == 1
+    mode = structure.unobservable[0]
+    assert mode.real == pytest.approx(-1 / (2e3 * 470e-9), rel=1e-9)  # the difference mode: 1/(R2 C2)
+    reduced, dropped = control.minimal(model)
+    assert dropped == 1 and reduced.nstates == 2
+    for s in (10j, 300.0, 2e3 + 5e3j):  # same input-output behaviour
+        assert reduced.transfer_function(s)[0, 0] == pytest.approx(model.transfer_function(s)[0, 0], rel=1e-9)
+
+
+def test_sweep_reproduces_the_seed_case_tables() -> None:
+    result = CliRunner().invoke(
+        main,
+        [
+            "sweep",
+            str(NETLISTS / "circuit2.cir"),
+            "--param",
+            "R1=1e-3,100",
+            "--param",
+            "R2=1e-3,100",
+            "--format",
+            "json",
+            "--jobs",
+            "2",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    cases = json.loads(result.stdout)["cases"]
+    assert [c["params"] for c in cases] == [{"r1": 1e-3, "r2": 1e-3}, {"r1": 100.0, "r2": 100.0}]
+    match_spectra(
+        [complex(*e) for e in cases[1]["eigenvalues"]],
+        [-100.0, -99.979998, -0.0100010 + 1.00005j, -0.0100010 - 1.00005j],
+        1e-6,
+    )
+
+
+def test_sweep_ranges() -> None:
+    from netlistdyn.sweep import expand_cases
+
+    cases = expand_cases(["R1=log:1e-6:1e3:10"])
+    assert (
+        len(cases) == 10 and cases[0]["r1"] == pytest.approx(1e-6) and cases[-1]["r1"] == pytest.approx(1e3)
+    )
+    assert len(expand_cases(["a=1,2", "b=3,4,5"])) == 6  # unequal lengths: every combination
+
+
+@pytest.mark.parametrize("suffix", [".json", ".npz", ".mat"])
+def test_exports_round_trip(suffix: str, tmp_path: Path) -> None:
+    model = compile_file("cap_loop.cir", outputs=["i(C2)", "v(a)"])  # has a D1 term
+    path = tmp_path / f"model{suffix}"
+    save_model(model, path)
+    back = load_model(path)
+    assert back.states == model.states and back.inputs == model.inputs and back.outputs == model.outputs
+    for name in ("A", "B", "C", "D", "D1"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(model, name))
+
+
+def test_analyze_save_and_control_flags(tmp_path: Path) -> None:
+    target = tmp_path / "servo.npz"
+    result = CliRunner().invoke(
+        main,
+        [
+            "analyze",
+            str(NETLISTS / "servo_shaft.cir"),
+            "--output",
+            "x(load)",
+            "--control",
+            "--save",
+            str(target),
+            "--format",
+            "json",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["control"]["controllable"] and doc["control"]["observable"]
+    assert load_model(target).nstates == 5
+
+
+def test_to_scipy_and_control() -> None:
+    model = compile_file("circuit1.cir")
+    ss = model.to_scipy()
+    np.testing.assert_array_equal(ss.A, model.A)
+    try:
+        import control as ct  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="pip install control"):
+            model.to_control()
