@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import click
 
+from .atomic import write_text
 from .errors import NetlistError, UsageError
 from .values import parse_number
 
@@ -41,15 +40,7 @@ def parse_param_overrides(items: tuple[str, ...]) -> dict[str, float]:
 
 def write_atomic(path: str, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent or Path("."), prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text(path, text)
 
 
 def emit(text: str, out: str | None) -> None:
@@ -113,6 +104,30 @@ format_option = click.option(
     default="text",
     show_default=True,
 )
+
+
+def path_option(flag: str, help_text: str, dest: str | None = None) -> Callable[[Any], Any]:
+    """An optional output-file option."""
+    names = (flag, dest) if dest else (flag,)
+    return click.option(*names, type=click.Path(dir_okay=False), default=None, help=help_text)
+
+
+tstop_option = click.option(
+    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
+)
+
+
+def load_and_compile(netlist: str, params: tuple[str, ...], outputs: list[str] | None) -> tuple[Any, Any]:
+    """Parse with ``--param`` overrides, compile, print the warnings; (netlist, model)."""
+    from .formulate import compile_netlist
+    from .parser import parse_file
+
+    parsed = parse_file(netlist, parse_param_overrides(params))
+    model = compile_netlist(parsed, outputs)
+    _print_warnings(model.info.warnings)
+    return parsed, model
+
+
 out_option = click.option(
     "-o",
     "--out",
@@ -142,12 +157,7 @@ out_option = click.option(
     "transfer functions with poles, zeros and DC gain.",
 )
 @click.option("--minimal", is_flag=True, help="Drop the states that do not reach the outputs; say how many.")
-@click.option(
-    "--save",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Save the model as .json, .npz or .mat (with labels).",
-)
+@path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @out_option
 def analyze(
     netlist: str,
@@ -162,14 +172,10 @@ def analyze(
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
     from .analysis import analyze_eigenvalues
-    from .formulate import compile_netlist
-    from .parser import parse_file
     from .report import control_dict, control_text, model_dict, text_report, to_json
 
     def body() -> int:
-        parsed = parse_file(netlist, parse_param_overrides(params))
-        model = compile_netlist(parsed, list(outputs) or None)
-        _print_warnings(model.info.warnings)
+        _, model = load_and_compile(netlist, params, list(outputs) or None)
         notes: list[str] = []
         if minimal or control_report:
             from . import control
@@ -222,9 +228,7 @@ def analyze(
     help="Override a .param in the compiled model only (ngspice keeps the netlist's value): "
     "shows what size of modelling error validate detects.",
 )
-@click.option(
-    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
-)
+@tstop_option
 @click.option("--tstep", type=float, default=None, help="Output step [s].")
 @click.option(
     "--rtol",
@@ -234,9 +238,7 @@ def analyze(
     help="Pass threshold: max error relative to each waveform's peak.",
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to ngspice.")
-@click.option(
-    "--plot", type=click.Path(dir_okay=False), default=None, help="Write a PNG overlay of both responses."
-)
+@path_option("--plot", "Write a PNG overlay of both responses.")
 @click.option(
     "--pz/--no-pz",
     default=True,
@@ -310,9 +312,7 @@ def validate(
 @click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
 @output_option
 @param_option
-@click.option(
-    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
-)
+@tstop_option
 @click.option("--tstep", type=float, default=None, help="Output step [s] (default: tstop/1000).")
 @click.option(
     "--method",
@@ -326,10 +326,8 @@ def validate(
 @click.option("--atol", type=float, default=None, help="Absolute tolerance (solve_ivp methods).")
 @click.option("--ic", "ics", multiple=True, metavar="STATE=VALUE", help="Initial state, e.g. q(C1)=1e-6.")
 @click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
-@click.option(
-    "--csv", "csv_path", type=click.Path(dir_okay=False), default=None, help="Write the outputs as CSV."
-)
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Write a PNG plot.")
+@path_option("--csv", "Write the outputs as CSV.", "csv_path")
+@path_option("--plot", "Write a PNG plot.")
 @format_option
 @out_option
 def simulate(
@@ -358,14 +356,10 @@ def simulate(
 
         from . import integrators
         from .analysis import analyze_eigenvalues
-        from .formulate import compile_netlist
-        from .parser import parse_file
         from .report import simulation_csv, simulation_dict, simulation_summary, to_json
         from .simulate import choose_horizon, input_signals
 
-        parsed = parse_file(netlist, parse_param_overrides(params))
-        model = compile_netlist(parsed, list(outputs) or None)
-        _print_warnings(model.info.warnings)
+        parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
             if value is not None and not value > 0:
                 raise UsageError(f"{name} must be positive")
@@ -405,9 +399,7 @@ def simulate(
 @click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
 @output_option
 @param_option
-@click.option(
-    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
-)
+@tstop_option
 @click.option("--points", type=int, default=1000, show_default=True, help="Grid intervals for scoring.")
 @click.option("--repeats", type=int, default=3, show_default=True, help="Timed repetitions (median).")
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to each run.")
@@ -419,9 +411,7 @@ def simulate(
     help="Our methods to run (repeatable; default: all that apply).",
 )
 @click.option("--ngspice/--no-ngspice", default=True, show_default=True, help="Include ngspice rows.")
-@click.option(
-    "--plot", type=click.Path(dir_okay=False), default=None, help="Log-log PNG of error against time."
-)
+@path_option("--plot", "Log-log PNG of error against time.")
 @format_option
 @out_option
 def bench(
@@ -443,19 +433,15 @@ def bench(
     def body() -> int:
         from .analysis import analyze_eigenvalues
         from .bench import run_bench
-        from .formulate import compile_netlist
-        from .parser import parse_file
-        from .probes import default_probes, parse_probe
+        from .probes import parse_probe
         from .report import bench_dict, bench_text, to_json
         from .simulate import choose_horizon
         from .validate import spice_settings_for
 
         if points < 10 or repeats < 1:
             raise UsageError("--points must be at least 10 and --repeats at least 1")
-        parsed = parse_file(netlist, parse_param_overrides(params))
-        probes = [parse_probe(o, parsed) for o in outputs] if outputs else default_probes(parsed)
-        model = compile_netlist(parsed, [p.name for p in probes])
-        _print_warnings(model.info.warnings)
+        parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+        probes = [parse_probe(name, parsed) for name in model.outputs]
         eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
         horizon = choose_horizon(parsed, eig, tstop, None)
         report = run_bench(
@@ -491,12 +477,7 @@ def bench(
 )
 @output_option
 @click.option("--jobs", type=int, default=1, show_default=True, help="Parallel processes.")
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="PNG of the eigenvalues against the swept parameter (root locus).",
-)
+@path_option("--plot", "PNG of the eigenvalues against the swept parameter (root locus).")
 @format_option
 @out_option
 def sweep(

@@ -68,7 +68,8 @@ def _rank_deficient(matrix: np.ndarray, tol: float) -> bool:
     return values.size == 0 or values[-1] <= tol * max(values[0], 1e-300)
 
 
-def _krylov_rank(A: np.ndarray, B: np.ndarray, tol: float) -> int:
+def _krylov(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """[B AB … Aⁿ⁻¹B] with unit columns (zero columns dropped)."""
     n = A.shape[0]
     blocks, block = [], B
     for _ in range(n):
@@ -76,7 +77,11 @@ def _krylov_rank(A: np.ndarray, B: np.ndarray, tol: float) -> int:
         block = A @ block
     K = np.hstack(blocks) if blocks else np.zeros((n, 0))
     norms = np.linalg.norm(K, axis=0)
-    K = K[:, norms > 0] / norms[norms > 0]
+    return K[:, norms > 0] / norms[norms > 0]
+
+
+def _krylov_rank(A: np.ndarray, B: np.ndarray, tol: float) -> int:
+    K = _krylov(A, B)
     if K.size == 0:
         return 0
     values = sla.svdvals(K)
@@ -148,16 +153,9 @@ def minimal(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceM
 
 
 def _range_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
-    n = A.shape[0]
-    blocks, block = [], B
-    for _ in range(n):
-        blocks.append(block)
-        block = A @ block
-    K = np.hstack(blocks) if blocks else np.zeros((n, 0))
-    norms = np.linalg.norm(K, axis=0)
-    K = K[:, norms > 0] / norms[norms > 0]
+    K = _krylov(A, B)
     if K.size == 0:
-        return np.zeros((n, 0))
+        return np.zeros((A.shape[0], 0))
     U, values, _ = sla.svd(K, full_matrices=False)
     rank = int(np.sum(values > tol * values[0]))
     return U[:, :rank]
@@ -213,7 +211,7 @@ def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
             n = np.atleast_2d(num)[i] / lead
             big = np.max(np.abs(n)) if n.size else 0.0
             first = np.flatnonzero(np.abs(n) > 1e-12 * big)  # leading rounding residue is not a term
-            n = n[first[0]:] if first.size else np.zeros(0)
+            n = n[first[0] :] if first.size else np.zeros(0)
             d = den / lead
             if n.size == 0:
                 n = np.array([0.0])

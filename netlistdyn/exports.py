@@ -9,28 +9,16 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
+from .atomic import write_bytes
 from .errors import UsageError
 from .model import CompileInfo, StateSpaceModel
 
 FORMATS = (".json", ".npz", ".mat")
-
-
-def _atomic_bytes(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def save_model(model: StateSpaceModel, path: str | Path) -> None:
@@ -43,7 +31,7 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
     labels = {"states": list(model.states), "inputs": list(model.inputs), "outputs": list(model.outputs)}
     if suffix == ".json":
         doc = {"title": model.title, **labels, **{k: v.tolist() for k, v in arrays.items()}}
-        _atomic_bytes(target, (json.dumps(doc, indent=1) + "\n").encode())
+        write_bytes(target, (json.dumps(doc, indent=1) + "\n").encode())
     elif suffix == ".npz":
         buffer = io.BytesIO()
         np.savez(
@@ -52,7 +40,7 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
             **{k: np.array(v) for k, v in arrays.items()},
             **{k: np.array(v, dtype=str) for k, v in labels.items()},
         )
-        _atomic_bytes(target, buffer.getvalue())
+        write_bytes(target, buffer.getvalue())
     elif suffix == ".mat":
         import scipy.io
 
@@ -61,7 +49,7 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
         scipy.io.savemat(
             buffer, {**{k: np.array(v) for k, v in arrays.items()}, **cells, "title": model.title}
         )
-        _atomic_bytes(target, buffer.getvalue())
+        write_bytes(target, buffer.getvalue())
     else:
         raise UsageError(f"--save {path}: unknown format {suffix!r}; use one of {', '.join(FORMATS)}")
 

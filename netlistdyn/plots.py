@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .atomic import write_bytes
 
 
 def _figure() -> Any:
@@ -20,16 +21,11 @@ def _figure() -> Any:
 
 
 def save_figure(fig: Any, path: str) -> None:
-    """Save through a temporary file and a rename, then close the figure."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent or Path("."), prefix=f".{target.name}.", suffix=".png")
-    os.close(fd)
+    """Save as PNG through a temporary file and a rename, then close the figure."""
+    buffer = io.BytesIO()
     try:
-        fig.savefig(tmp, dpi=110, format="png")
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        fig.savefig(buffer, dpi=110, format="png")
+        write_bytes(path, buffer.getvalue())
     finally:
         _figure().close(fig)
 
