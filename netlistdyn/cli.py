@@ -277,7 +277,8 @@ def validate(
         from .parser import parse_file
         from .probes import default_probes, parse_probe
         from .report import to_json, validation_dict, validation_text
-        from .validate import choose_horizon, compare, compare_poles, spice_settings_for
+        from .simulate import choose_horizon
+        from .validate import compare, compare_poles, spice_settings_for
 
         overrides = parse_param_overrides(params)
         parsed = parse_file(netlist, overrides)
