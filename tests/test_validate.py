@@ -67,6 +67,7 @@ CASES = [
     ("servo_shaft.cir", ["--output", "x(load)", "--output", "v(motor)", "--output", "i(L1)"]),
     ("servo_shaft.cir", ["--param", "K=50", "--output", "v(shaft)", "--output", "v(load)"]),
     ("gear_train.cir", ["--output", "v(load)", "--output", "i(L1)", "--output", "i(b)"]),
+    ("balanced.cir", ["--output", "v(a)", "--output", "v(b,c)", "--output", "i(R2)"]),
 ]
 
 
