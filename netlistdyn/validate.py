@@ -236,17 +236,28 @@ def compare(
     ours, _ = simulate_foh(model, signals, run.time)
     model_seconds = time.perf_counter() - start
     comparisons = []
+    peaks = {
+        p.name: float(np.max(np.abs(run.outputs[p.name]))) if run.outputs[p.name].size else 0.0
+        for p in probes
+    }
     for j, probe in enumerate(probes):
-        ref = run.outputs[probe.name]
-        diff = ours[:, j] - ref
-        peak = float(np.max(np.abs(ref))) if ref.size else 0.0
+        diff = ours[:, j] - run.outputs[probe.name]
+        peak = peaks[probe.name]
         max_abs = float(np.max(np.abs(diff))) if diff.size else 0.0
-        scale = peak if peak > 0 else 1.0
-        if peak == 0:
+        # An output far below the others of its kind (a bridge's balanced difference: zero in
+        # theory, rounding noise in both simulators) is judged against 1e-9 of the largest.
+        largest = max((peaks[p.name] for p in probes if p.kind == probe.kind), default=0.0)
+        scale = max(peak, 1e-9 * largest)
+        if scale == 0:
+            scale = 1.0
             notes.append(f"{probe.name} is identically zero in ngspice: its error is absolute")
-        comparisons.append(
-            OutputComparison(probe.name, peak, max_abs, max_abs / scale, float(np.sqrt(np.mean(diff**2))))
-        )
+        elif peak < 1e-9 * largest:
+            notes.append(
+                f"{probe.name} stays below 1e-9 of the largest output of its kind: its error is "
+                f"measured against that floor ({scale:.3g})"
+            )
+        rms = float(np.sqrt(np.mean(diff**2)))
+        comparisons.append(OutputComparison(probe.name, peak, max_abs, max_abs / scale, rms))
     return ValidationReport(
         netlist.path,
         horizon,
