@@ -1,0 +1,61 @@
+"""Series and feedback interconnection (issue 6) against seed 003's block formulas
+and against transfer-function algebra (G2·G1 and G1(I − s·G2 G1)⁻¹), rtol 1e-10."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from netlistdyn.errors import ControlDimension
+from netlistdyn.interconnect import feedback, series
+
+from .conftest import compile_file, compile_string
+
+PLANT = "plant\nV1 in 0 1\nR1 in a 10\nC1 a 0 1m\nL1 a 0 1\n"
+SENSOR = "sensor\nV1 in 0 1\nR1 in a 1k\nC1 a 0 10u\nR2 a 0 1k\n"
+
+
+def models():
+    return compile_string(PLANT, ["v(a)"]), compile_string(SENSOR, ["v(a)"])
+
+
+def test_series_block_formula_and_transfer_function() -> None:
+    m1, m2 = models()
+    s = series(m1, m2)
+    expected = np.block([[m1.A, np.zeros((2, 1))], [m2.B @ m1.C, m2.A]])
+    np.testing.assert_allclose(s.A, expected, rtol=1e-14)
+    assert s.states == ("m1.q(C1)", "m1.i(L1)", "m2.q(C1)")
+    for z in (3j, 50.0 + 20j):
+        np.testing.assert_allclose(
+            s.transfer_function(z), m2.transfer_function(z) @ m1.transfer_function(z), rtol=1e-10
+        )
+
+
+def test_feedback_block_formula_and_transfer_function() -> None:
+    m1, m2 = models()
+    f = feedback(m1, m2)
+    expected = np.block([[m1.A, -m1.B @ m2.C], [m2.B @ m1.C, m2.A]])  # seed 003, D1 = D2 = 0
+    np.testing.assert_allclose(f.A, expected, rtol=1e-14)
+    for z in (3j, 50.0 + 20j):
+        g1, g2 = m1.transfer_function(z), m2.transfer_function(z)
+        closed = g1 @ np.linalg.inv(np.eye(1) + g2 @ g1)
+        np.testing.assert_allclose(f.transfer_function(z), closed, rtol=1e-10)
+
+
+def test_feedback_with_feedthrough() -> None:
+    m1 = compile_string("d\nV1 in 0 1\nR1 in a 1\nR2 a 0 1\nC1 a 0 1\n", ["v(a)", "v(in)"])
+    m2 = compile_string("k\nV1 in 0 1\nV2 in2 0 1\nR1 in a 1\nR2 in2 a 1\nC1 a 0 1\n", ["v(in)"])
+    f = feedback(m1, m2, sign=-1.0)
+    for z in (1j, 2.0):
+        g1, g2 = m1.transfer_function(z), m2.transfer_function(z)
+        np.testing.assert_allclose(
+            f.transfer_function(z), g1 @ np.linalg.inv(np.eye(1) + g2 @ g1), rtol=1e-10
+        )
+
+
+def test_dimension_mismatch_says_expected_and_actual() -> None:
+    m1 = compile_file("circuit2.cir")  # 4 outputs
+    m2 = compile_string(SENSOR, ["v(a)"])  # 1 input
+    with pytest.raises(ControlDimension, match=r"4 outputs.*expects 1 inputs"):
+        series(m1, m2)
+    assert issubclass(ControlDimension, ValueError)
