@@ -61,13 +61,33 @@ def fmt(row: dict | None) -> str:
     return f"{row['error']:.1e} in {row['seconds']:.3g} s"
 
 
+START, END = "<!-- bench:start -->", "<!-- bench:end -->"
+
+
+def update_readme(summary: Path) -> None:
+    """Replace the table between the bench markers in README.md with ``summary``."""
+    readme = ROOT / "README.md"
+    text = readme.read_text()
+    head, rest = text.split(START, 1)
+    _, tail = rest.split(END, 1)
+    readme.write_text(f"{head}{START}\n{summary.read_text().strip()}\n{END}{tail}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--sizes", default="10,100,1000,10000")
     parser.add_argument("--out", default=str(HERE / "results"))
     parser.add_argument("--no-circuits", action="store_true", help="Only the ladders.")
     parser.add_argument("--append", action="store_true", help="Append rows to summary.md.")
+    parser.add_argument(
+        "--update-readme",
+        action="store_true",
+        help="Only copy summary.md into README.md between the bench markers.",
+    )
     args = parser.parse_args()
+    if args.update_readme:
+        update_readme(Path(args.out) / "summary.md")
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cases = (
@@ -139,6 +159,7 @@ def main() -> None:
         summary.write_text(summary.read_text() + "\n".join(lines[2:]) + "\n")
     else:
         summary.write_text("\n".join(lines) + "\n")
+    update_readme(summary)
 
 
 if __name__ == "__main__":
