@@ -521,7 +521,10 @@ def _ivp(
         t_eval = np.union1d(times[inside], [b])
         try:
             sol = solve_ivp(rhs, (a, b), x, method=method, t_eval=t_eval, rtol=rtol, atol=absolute, **kwargs)
+            message = "" if sol.success else str(sol.message)
         except Exception as exc:
+            message = f"{type(exc).__name__}: {exc}"
+        if message:
             return SimResult(
                 times,
                 np.zeros((times.size, model.noutputs)),
@@ -529,17 +532,7 @@ def _ivp(
                 setting,
                 time.perf_counter() - start,
                 "failed",
-                f"{type(exc).__name__}: {exc}",
-            )
-        if not sol.success:
-            return SimResult(
-                times,
-                np.zeros((times.size, model.noutputs)),
-                method,
-                setting,
-                time.perf_counter() - start,
-                "failed",
-                sol.message,
+                message,
             )
         stats["nfev"] += sol.nfev
         stats["steps"] += sol.t.size
