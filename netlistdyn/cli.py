@@ -412,6 +412,13 @@ def simulate(
     help="Our methods to run (repeatable; default: all that apply).",
 )
 @click.option("--ngspice/--no-ngspice", default=True, show_default=True, help="Include ngspice rows.")
+@click.option(
+    "--reference-rtol",
+    type=float,
+    default=1e-12,
+    show_default=True,
+    help="Tolerance of the large-model reference (checked 10x looser).",
+)
 @path_option("--plot", "Log-log PNG of error against time.")
 @format_option
 @out_option
@@ -425,6 +432,7 @@ def bench(
     timeout: float,
     methods: tuple[str, ...],
     ngspice: bool,
+    reference_rtol: float,
     plot: str | None,
     fmt: str,
     out: str | None,
@@ -456,6 +464,7 @@ def bench(
             timeout,
             methods or None,
             ngspice,
+            reference_rtol,
         )
         if plot:
             from .plots import bench_plot
