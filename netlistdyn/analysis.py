@@ -170,6 +170,24 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             weight = sum(abs(y[i]) * sum(abs_a[i, j] * abs(x[j]) for j in range(n)) for i in range(n))
             cond = weight / overlap if overlap > 0 else mp.inf
             abs_err[k] = float(mp.mpf(EPS) * cond) if cond != mp.inf else math.inf
+        # A repeated eigenvalue has no meaningful per-vector condition number. When its cluster
+        # is semisimple (A − λI loses exactly as much rank as the cluster has members, as for
+        # parallel inductors' conserved currents), its error is first order: eps·‖A‖·n.
+        norm = mp.mpf(float(np.max(np.sum(np.abs(a), axis=1))))
+        first_order = EPS * float(norm) * n
+        tol = mp.mpf(10) ** (10 - REFINE_DIGITS) * (1 + norm)
+        for k in np.flatnonzero(~(abs_err <= first_order)):
+            lam = values[k]
+            members = [j for j in range(n) if abs(values[j] - lam) <= tol]
+            if len(members) < 2:
+                continue
+            shifted = mp.matrix(a.tolist()) - lam * mp.eye(n)
+            singular = (
+                mp.svd_c(shifted, compute_uv=False) if mp.im(lam) else mp.svd_r(shifted, compute_uv=False)
+            )
+            if sum(1 for v in singular if v <= tol) >= len(members):
+                for j in members:
+                    abs_err[j] = first_order
     # The extended-precision computation has its own rounding, ~10^-(digits-5)·‖A‖ (a structural
     # zero eigenvalue comes out as ±1e-52 at 50 digits): no eigenvalue is more accurate than that.
     computation = 10.0 ** (5 - REFINE_DIGITS) * float(np.max(np.sum(np.abs(a), axis=1)))
