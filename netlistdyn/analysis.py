@@ -248,6 +248,26 @@ def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
     return modes, method
 
 
+def largest_eigenvalues(a: sp.sparray, k: int, tol: float) -> np.ndarray:
+    """The k largest-magnitude eigenvalues by ARPACK with a wide Krylov space.
+
+    Returns what converged when ARPACK stops early (possibly nothing).
+    """
+    n = a.shape[0]
+    try:
+        return spla.eigs(
+            sp.csc_matrix(a),
+            k=k,
+            which="LM",
+            ncv=min(n - 1, 40),
+            tol=tol,
+            maxiter=5000,
+            return_eigenvectors=False,
+        )
+    except spla.ArpackNoConvergence as exc:
+        return np.asarray(exc.eigenvalues)
+
+
 def _sparse_modes(a: sp.sparray) -> tuple[list[Mode], str]:
     """Slowest modes by shift-invert at 0 (one sparse LU), plus the spectral radius.
 
@@ -259,18 +279,7 @@ def _sparse_modes(a: sp.sparray) -> tuple[list[Mode], str]:
     k = min(EXTREME_COUNT, n - 2)
     op = sp.csc_matrix(a)
     small = spla.eigs(op, k=k, sigma=0.0, which="LM", return_eigenvectors=False)
-    try:
-        large = spla.eigs(
-            op,
-            k=2,
-            which="LM",
-            ncv=min(n - 1, 40),
-            tol=1e-8,
-            maxiter=5000,
-            return_eigenvectors=False,
-        )
-    except spla.ArpackNoConvergence as exc:
-        large = exc.eigenvalues
+    large = largest_eigenvalues(op, 2, 1e-8)
     values = np.concatenate([large, small])
     modes = [Mode(complex(v), math.nan) for v in values]
     method = (

@@ -36,7 +36,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .errors import NetlistError, SingularCircuitError, SourceLocation, TopologyError, UsageError
-from .graph import CircuitGraph, Role, TreeSplit, build_graph, check_sources, normal_tree
+from .graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
 from .mechanics import state_prefix
 from .model import CompileInfo, ExcessElement, StateShift, StateSpaceModel
 from .netlist import GROUND, Element, Kind, Netlist
@@ -790,6 +790,3 @@ def _shifts(K: sp.csr_array, states: tuple[str, ...], inputs: tuple[str, ...]) -
         if coeffs:
             out.append(StateShift(name, coeffs))
     return tuple(out)
-
-
-__all__ = ["Role", "compile_netlist"]

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from ._pade_table import DIAGONAL_12_12, SUBDIAGONAL_11_12
+from .analysis import largest_eigenvalues
 from .model import StateSpaceModel
 from .simulate import InputSignals, refine_grid, simulate_foh
 
@@ -104,21 +105,10 @@ def spectral_radius(model: StateSpaceModel) -> float:
         return 0.0
     if n <= EXACT_LIMIT:
         return float(np.max(np.abs(np.linalg.eigvals(model.A))))
-    try:
-        values = spla.eigs(
-            sp.csc_matrix(model.A_sparse),
-            k=1,
-            which="LM",
-            ncv=min(n - 1, 40),
-            tol=1e-3,
-            maxiter=3000,
-            return_eigenvectors=False,
-        )
+    values = largest_eigenvalues(model.A_sparse, 1, 1e-3)
+    if len(values):
         return float(np.max(np.abs(values)))
-    except spla.ArpackNoConvergence as exc:
-        if len(exc.eigenvalues):
-            return float(np.max(np.abs(exc.eigenvalues)))
-        return float(sp.linalg.norm(model.A_sparse, 1))
+    return float(sp.linalg.norm(model.A_sparse, 1))  # a bound when ARPACK gives nothing
 
 
 def choose_method(model: StateSpaceModel) -> str:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -630,9 +630,3 @@ def parse_file(path: str | Path, overrides: Mapping[str, float] | None = None) -
     except UnicodeDecodeError:
         raise NetlistError("cannot read netlist: not a text file", SourceLocation(str(path), 0)) from None
     return parse_text(text, str(path), overrides)
-
-
-def iter_values(netlist: Netlist) -> Iterator[tuple[str, float]]:
-    """(element name, value) pairs, for reports."""
-    for element in netlist.elements:
-        yield element.name, element.value
