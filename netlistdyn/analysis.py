@@ -175,7 +175,8 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # parallel inductors' conserved currents), its error is first order: eps·‖A‖·n.
         norm = mp.mpf(float(np.max(np.sum(np.abs(a), axis=1))))
         first_order = EPS * float(norm) * n
-        tol = mp.mpf(10) ** (10 - REFINE_DIGITS) * (1 + norm)
+        # A multiple root perturbed at 50 digits splits by up to ~10^-25: cluster at that level.
+        tol = mp.mpf(10) ** (5 - REFINE_DIGITS // 2) * (1 + norm)
         for k in np.flatnonzero(~(abs_err <= first_order)):
             lam = values[k]
             members = [j for j in range(n) if abs(values[j] - lam) <= tol]
@@ -186,8 +187,12 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 mp.svd_c(shifted, compute_uv=False) if mp.im(lam) else mp.svd_r(shifted, compute_uv=False)
             )
             if sum(1 for v in singular if v <= tol) >= len(members):
-                for j in members:
-                    abs_err[j] = first_order
+                bound = first_order  # semisimple: first order
+            else:  # defective at rounding level: a size-m block moves by (eps·‖A‖)^(1/m) (Hölder)
+                m = len(members)
+                bound = (EPS * float(norm)) ** (1.0 / m) * max(1.0, float(norm)) ** (1.0 - 1.0 / m)
+            for j in members:
+                abs_err[j] = min(abs_err[j], bound)
     # The extended-precision computation has its own rounding, ~10^-(digits-5)·‖A‖ (a structural
     # zero eigenvalue comes out as ±1e-52 at 50 digits): no eigenvalue is more accurate than that.
     computation = 10.0 ** (5 - REFINE_DIGITS) * float(np.max(np.sum(np.abs(a), axis=1)))

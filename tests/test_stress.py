@@ -127,3 +127,16 @@ def test_default_method_agrees_with_rational(name: str) -> None:
     peak = np.max(np.abs(a.outputs), axis=0)
     floor = np.maximum(peak, 1e-9 * peak.max())
     assert np.max(np.abs(a.outputs - b.outputs) / floor) <= 1e-8
+
+
+def test_rounding_level_defective_zero_is_still_marginal() -> None:
+    """Found by hypothesis: parallel inductors between two capacitors conserve the total charge
+    and the circulating current; in the stored doubles the double zero is defective at rounding
+    level, so its error is the Hölder bound √(eps·‖A‖), not infinite, and the verdict holds."""
+    from .conftest import compile_string
+
+    text = "t\nC1 n1 0 1.0\nR1 n2 0 1.0\nL1 n3 n1 1.0\nL2 n1 n3 3.0\nC2 0 n3 3.0\nI1 0 n1 1\n"
+    eig = analyze_eigenvalues(compile_string(text).A_sparse)
+    assert eig.verdict == "marginally stable"
+    zeros = [m for m in eig.modes if m.value == 0]
+    assert len(zeros) == 2 and all(m.abs_error < 1e-6 for m in zeros)
