@@ -157,6 +157,16 @@ out_option = click.option(
     "transfer functions with poles, zeros and DC gain.",
 )
 @click.option("--minimal", is_flag=True, help="Drop the states that do not reach the outputs; say how many.")
+@click.option(
+    "--symbolic",
+    is_flag=False,
+    flag_value="*",
+    default=None,
+    metavar="[NAMES]",
+    help="Also give A, B, C, D in terms of the element names (sympy, small circuits). "
+    "--symbolic=R1,C1 keeps only those symbolic; the others take their (--param) values.",
+)
+@path_option("--bode", "PNG of the frequency response of every input/output pair.")
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @out_option
 def analyze(
@@ -167,16 +177,34 @@ def analyze(
     eig: str,
     control_report: bool,
     minimal: bool,
+    symbolic: str | None,
+    bode: str | None,
     save: str | None,
     out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
     from .analysis import analyze_eigenvalues
-    from .report import control_dict, control_text, model_dict, text_report, to_json
+    from .report import (
+        control_dict,
+        control_text,
+        model_dict,
+        symbolic_dict,
+        symbolic_text,
+        text_report,
+        to_json,
+    )
 
     def body() -> int:
-        _, model = load_and_compile(netlist, params, list(outputs) or None)
+        parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         notes: list[str] = []
+        sym = None
+        if symbolic is not None:
+            if minimal:
+                raise UsageError("--symbolic shows the compiled model; it cannot be combined with --minimal")
+            from .symbolic import symbolic_model
+
+            keep = None if symbolic == "*" else [n.strip() for n in symbolic.split(",") if n.strip()]
+            sym = symbolic_model(parsed, list(outputs) or None, keep)
         if minimal or control_report:
             from . import control
 
@@ -197,11 +225,17 @@ def analyze(
             from .exports import save_model
 
             save_model(model, save)
+        if bode:
+            from .plots import bode_plot
+
+            bode_plot(model, bode)
         if fmt == "json":
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist
             if control_report:
                 doc["control"] = control_dict(structure, tfs)
+            if sym is not None:
+                doc["symbolic"] = symbolic_dict(sym)
             if notes:
                 doc["notes"] = notes
             emit(to_json(doc), out)
@@ -209,6 +243,8 @@ def analyze(
             text = text_report(model, analysis, netlist)
             if control_report:
                 text += control_text(structure, tfs)
+            if sym is not None:
+                text += symbolic_text(sym)
             text += "".join(f"note: {n}\n" for n in notes)
             emit(text, out)
         return 0

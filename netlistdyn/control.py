@@ -235,3 +235,29 @@ def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
                 )
             )
     return out
+
+
+def frequency_grid(model: StateSpaceModel, points: int = 400) -> np.ndarray:
+    """Angular frequencies (rad/s), log-spaced two decades beyond the model's eigenvalue magnitudes."""
+    magnitudes = np.abs(np.linalg.eigvals(model.A)) if model.nstates else np.zeros(0)
+    magnitudes = magnitudes[magnitudes > 0]
+    low, high = (magnitudes.min() / 100, magnitudes.max() * 100) if magnitudes.size else (1e-2, 1e2)
+    return np.logspace(np.log10(low), np.log10(high), points)
+
+
+def frequency_response(model: StateSpaceModel, omega: np.ndarray) -> np.ndarray:
+    """H(jω) = C (jωI − A)⁻¹ B + D + jω·D1 at each angular frequency.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+    omega : numpy.ndarray
+        Angular frequencies (rad/s).
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex array of shape ``(len(omega), noutputs, ninputs)``: output
+        units per input unit (V/V, A/V, (m/s)/N, …).
+    """
+    return np.stack([model.transfer_function(1j * w) for w in np.asarray(omega, dtype=float)])

@@ -27,8 +27,9 @@ voltages are scaled to charges, so the states are the seeds' Q_C and I_L.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -86,6 +87,21 @@ class _Equations:
     imap: sp.csr_array  # branch currents from primaries
 
 
+@dataclass(frozen=True)
+class Formulation:
+    """A compiled netlist with the normal tree that produced it.
+
+    The tree depends only on the topology, so a sweep (:func:`recompile`)
+    and the symbolic path (:mod:`netlistdyn.symbolic`) reuse it.
+    """
+
+    netlist: Netlist
+    circuit: CircuitGraph
+    tree: TreeSplit
+    probes: tuple[Probe, ...]
+    model: StateSpaceModel
+
+
 def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> StateSpaceModel:
     """Compile a parsed netlist to a state-space model.
 
@@ -108,21 +124,71 @@ def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> S
     UsageError
         For output specifications that name unknown nodes or elements.
     """
-    probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
-    candidates = tree_candidates(netlist)
+    return formulate(netlist, outputs).model
+
+
+def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formulation:
+    """Choose the normal tree and compile; see :func:`compile_netlist`."""
+    probes = (
+        tuple(parse_probe(text, netlist) for text in outputs) if outputs else tuple(default_probes(netlist))
+    )
     failure: NetlistError | None = None
-    for circuit, tree in candidates:
+    for circuit, tree in tree_candidates(netlist):
         try:
-            check_sources(circuit, tree)
-            equations = assemble(netlist, circuit, tree)
-            classes = classify(circuit, tree, netlist)
-            model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+            model = _compile_on_tree(netlist, circuit, tree, probes)
         except (SingularCircuitError, NotSupportedError) as exc:
             failure = failure or exc
             continue
-        return add_displacements(model, probes)
+        return Formulation(netlist, circuit, tree, probes, model)
     assert failure is not None
     raise failure
+
+
+def _compile_on_tree(
+    netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit, probes: Sequence[Probe]
+) -> StateSpaceModel:
+    check_sources(circuit, tree)
+    equations = assemble(netlist, circuit, tree)
+    classes = classify(circuit, tree, netlist)
+    model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+    return add_displacements(model, probes)
+
+
+def recompile(formulation: Formulation, netlist: Netlist) -> StateSpaceModel:
+    """Compile the same circuit with other element values, on the same normal tree.
+
+    Parameters
+    ----------
+    formulation : Formulation
+        A compiled case of the circuit.
+    netlist : Netlist
+        The circuit again (same elements and nodes), with new values — as
+        a sweep produces by re-reading the netlist with other ``.param``
+        values.
+
+    Returns
+    -------
+    StateSpaceModel
+        When the topology differs, or the new values make the old tree's
+        equations singular, the circuit is compiled from scratch instead.
+    """
+    old = formulation.netlist.elements
+    same = len(old) == len(netlist.elements) and all(
+        (a.key, a.kind, a.nodes, a.control_nodes, a.control_source, a.coupled)
+        == (b.key, b.kind, b.nodes, b.control_nodes, b.control_source, b.coupled)
+        for a, b in zip(old, netlist.elements, strict=True)
+    )
+    if not same:
+        return compile_netlist(netlist, [p.name for p in formulation.probes])
+    by_key = {e.key: e for e in netlist.elements}
+    circuit = replace(
+        formulation.circuit,
+        branches=tuple(replace(b, element=by_key[b.element.key]) for b in formulation.circuit.branches),
+    )
+    try:
+        return _compile_on_tree(netlist, circuit, formulation.tree, formulation.probes)
+    except (SingularCircuitError, NotSupportedError):
+        return compile_netlist(netlist, [p.name for p in formulation.probes])
 
 
 #: Up to this many transformers every orientation is tried; above, a greedy search.
@@ -199,30 +265,114 @@ def _misplaced_transformers(circuit: CircuitGraph, tree: TreeSplit) -> list[Elem
     return [elem for elem, n in counts.values() if n != 1]
 
 
-def _inductance_matrix(netlist: Netlist, circuit: CircuitGraph) -> sp.csr_array:
-    """Branch inductance matrix (H): self inductances and mutual M = k√(L1 L2)."""
+@dataclass(frozen=True)
+class BranchLaws:
+    """Every branch's constitutive equation, in branch quantities.
+
+    Row k is branch k's law. Each list holds ``(row, column, coefficient)``
+    triplets; the coefficient is a float for the numeric formulation or a
+    sympy expression for :mod:`netlistdyn.symbolic`, which shares these laws.
+
+    Attributes
+    ----------
+    v, i : list
+        Coefficients of branch voltages and currents (column: branch index).
+    dv, di : list
+        Coefficients of their time derivatives (capacitances, inductances).
+    control : list
+        ``(row, (node a, node b), gain)``: coefficient of v(a) − v(b).
+    u : list
+        Coefficients of the inputs (column: input index).
+    """
+
+    v: list[tuple[int, int, Any]]
+    i: list[tuple[int, int, Any]]
+    dv: list[tuple[int, int, Any]]
+    di: list[tuple[int, int, Any]]
+    control: list[tuple[int, tuple[str, str], Any]]
+    u: list[tuple[int, int, Any]]
+
+
+def branch_laws(
+    netlist: Netlist,
+    circuit: CircuitGraph,
+    value: Callable[[Element], Any],
+    mutual: Callable[[Element, Any, Any], Any],
+) -> BranchLaws:
+    """Write each branch's constitutive equation (SPICE sign conventions).
+
+    Parameters
+    ----------
+    netlist : Netlist
+    circuit : CircuitGraph
+    value : callable
+        ``value(element)``: the element's value (Ω, F, H, V/V, A/A, …), a
+        float or a symbol.
+    mutual : callable
+        ``mutual(coupling, L_a, L_b)``: mutual inductance (H) of a ``K`` element.
+
+    Returns
+    -------
+    BranchLaws
+    """
+    laws = BranchLaws([], [], [], [], [], [])
+    inputs = {e.key: j for j, e in enumerate(netlist.sources)}
+    branch_of = {b.element.key: b.index for b in circuit.branches if b.element.kind is not Kind.TRANSFORMER}
+    for branch in circuit.branches:
+        k, element = branch.index, branch.element
+        kind = element.kind
+        if kind is Kind.RESISTOR:  # v − R i = 0
+            laws.v.append((k, k, 1))
+            laws.i.append((k, k, -value(element)))
+        elif kind is Kind.CAPACITOR:  # i − C v' = 0
+            laws.i.append((k, k, 1))
+            laws.dv.append((k, k, -value(element)))
+        elif kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0
+            laws.v.append((k, k, 1))
+            laws.di.append((k, k, -value(element)))
+        elif kind in (Kind.VSOURCE, Kind.ISOURCE):  # v − u = 0 or i − u = 0
+            (laws.v if kind is Kind.VSOURCE else laws.i).append((k, k, 1))
+            laws.u.append((k, inputs[element.key], -1))
+        elif kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
+            assert element.control_nodes is not None
+            (laws.v if kind is Kind.VCVS else laws.i).append((k, k, 1))
+            laws.control.append((k, element.control_nodes, -value(element)))
+        elif kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
+            assert element.control_source is not None
+            (laws.i if kind is Kind.CCCS else laws.v).append((k, k, 1))
+            laws.i.append((k, branch_of[element.control_source], -value(element)))
+        elif kind is Kind.TRANSFORMER:
+            # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
+            if branch.port == 0:
+                laws.v.extend([(k, k, 1), (k, k + 1, -value(element))])
+            else:
+                laws.i.extend([(k, k, 1), (k, k - 1, value(element))])
+        else:  # pragma: no cover - the parser admits no other kinds
+            raise AssertionError(kind)
     index = {b.element.key: b.index for b in circuit.branches if b.element.kind is Kind.INDUCTOR}
-    rows, cols, vals = [], [], []
-    for _key, k in index.items():
-        rows.append(k)
-        cols.append(k)
-        vals.append(circuit.branches[k].element.value)
     for element in netlist.elements:
         if element.kind is Kind.COUPLING:
             assert element.coupled is not None
             a, b = (index[name] for name in element.coupled)
-            la, lb = circuit.branches[a].element.value, circuit.branches[b].element.value
-            if la * lb <= 0:
-                raise NetlistError(
-                    f"{element.label}: coupled inductors must have inductances of the same sign",
-                    element.loc,
-                )
-            mutual = element.value * np.sqrt(la * lb) * np.sign(la)
-            rows += [a, b]
-            cols += [b, a]
-            vals += [mutual, mutual]
-    n = circuit.nbranches
-    return sp.csr_array((vals, (rows, cols)), shape=(n, n))
+            m = mutual(element, circuit.branches[a].element, circuit.branches[b].element)
+            laws.di.extend([(a, b, -m), (b, a, -m)])
+    return laws
+
+
+def _numeric_mutual(coupling: Element, la: Element, lb: Element) -> float:
+    """M = k·√(L_a L_b) (H), with the sign of the inductances."""
+    if la.value * lb.value <= 0:
+        raise NetlistError(
+            f"{coupling.label}: coupled inductors must have inductances of the same sign", coupling.loc
+        )
+    return coupling.value * float(np.sqrt(la.value * lb.value)) * float(np.sign(la.value))
+
+
+def _triplets(entries: list[tuple[int, int, Any]], shape: tuple[int, int]) -> sp.csr_array:
+    if not entries:
+        return sp.csr_array(shape)
+    rows, cols, vals = zip(*entries, strict=True)
+    return sp.csr_array((np.asarray(vals, dtype=float), (rows, cols)), shape=shape)
 
 
 def _potential_rows(tree: TreeSplit, pairs: Sequence[tuple[str, str]], n: int) -> sp.csr_array:
@@ -242,6 +392,13 @@ def _potential_rows(tree: TreeSplit, pairs: Sequence[tuple[str, str]], n: int) -
     return sp.csr_array((vals, (rows, cols)), shape=(len(pairs), n))
 
 
+def primary_maps(tree: TreeSplit) -> tuple[sp.csr_array, sp.csr_array]:
+    """Branch voltages and currents from the primaries: (vmap, imap), entries 0/±1."""
+    tree_diag = sp.diags_array(tree.in_tree.astype(float))
+    link_diag = sp.diags_array((~tree.in_tree).astype(float))
+    return (tree_diag + tree.loops).tocsr(), (link_diag - tree.loops.T).tocsr()
+
+
 def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equations:
     """Write one constitutive equation per branch over the primary unknowns.
 
@@ -258,85 +415,17 @@ def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equat
         voltage and current from ``w``.
     """
     n = circuit.nbranches
-    tree_diag = sp.diags_array(tree.in_tree.astype(float))
-    link_diag = sp.diags_array((~tree.in_tree).astype(float))
-    vmap = (tree_diag + tree.loops).tocsr()
-    imap = (link_diag - tree.loops.T).tocsr()
-
-    inputs = {e.key: j for j, e in enumerate(netlist.sources)}
-    branch_of = {b.element.key: b.index for b in circuit.branches if b.element.kind is not Kind.TRANSFORMER}
-    dv = np.zeros(n)  # coefficient of the branch's own voltage
-    di = np.zeros(n)  # coefficient of the branch's own current
-    ev = np.zeros(n)  # coefficient of the derivative of its own voltage (capacitors)
-    f_rows, f_cols, f_vals = [], [], []
-    # Couplings to other branches' quantities: rows of (voltage, current, control-voltage) terms.
-    xv_rows, xv_cols, xv_vals = [], [], []
-    xi_rows, xi_cols, xi_vals = [], [], []
-    control_pairs: list[tuple[str, str]] = []
-    control_rows: list[int] = []
-    control_gain: list[float] = []
-    for branch in circuit.branches:
-        k, element = branch.index, branch.element
-        kind = element.kind
-        if kind is Kind.RESISTOR:
-            dv[k], di[k] = 1.0, -element.value
-        elif kind is Kind.CAPACITOR:
-            di[k], ev[k] = 1.0, -element.value
-        elif kind is Kind.INDUCTOR:
-            dv[k] = 1.0
-        elif kind in (Kind.VSOURCE, Kind.ISOURCE):
-            if kind is Kind.VSOURCE:
-                dv[k] = 1.0
-            else:
-                di[k] = 1.0
-            f_rows.append(k)
-            f_cols.append(inputs[element.key])
-            f_vals.append(-1.0)
-        elif kind in (Kind.VCVS, Kind.VCCS):
-            assert element.control_nodes is not None
-            if kind is Kind.VCVS:
-                dv[k] = 1.0
-            else:
-                di[k] = 1.0
-            control_pairs.append(element.control_nodes)
-            control_rows.append(k)
-            control_gain.append(-element.value)
-        elif kind in (Kind.CCCS, Kind.CCVS):
-            assert element.control_source is not None
-            if kind is Kind.CCCS:
-                di[k] = 1.0
-            else:
-                dv[k] = 1.0
-            xi_rows.append(k)
-            xi_cols.append(branch_of[element.control_source])
-            xi_vals.append(-element.value)
-        elif kind is Kind.TRANSFORMER:
-            # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
-            ratio = element.value
-            if branch.port == 0:
-                dv[k] = 1.0
-                xv_rows.append(k)
-                xv_cols.append(k + 1)
-                xv_vals.append(-ratio)
-            else:
-                di[k] = 1.0
-                xi_rows.append(k)
-                xi_cols.append(k - 1)
-                xi_vals.append(ratio)
-        else:  # pragma: no cover - the parser admits no other kinds
-            raise AssertionError(kind)
-
-    select_v = sp.csr_array((xv_vals, (xv_rows, xv_cols)), shape=(n, n))
-    select_i = sp.csr_array((xi_vals, (xi_rows, xi_cols)), shape=(n, n))
-    G = sp.diags_array(dv) @ vmap + sp.diags_array(di) @ imap + select_v @ vmap + select_i @ imap
-    if control_pairs:
-        ctrl = _potential_rows(tree, control_pairs, n)
-        place = sp.csr_array(
-            (control_gain, (control_rows, range(len(control_rows)))), shape=(n, len(control_rows))
+    vmap, imap = primary_maps(tree)
+    laws = branch_laws(netlist, circuit, lambda e: e.value, _numeric_mutual)
+    G = _triplets(laws.v, (n, n)) @ vmap + _triplets(laws.i, (n, n)) @ imap
+    if laws.control:
+        ctrl = _potential_rows(tree, [pair for _, pair, _ in laws.control], n)
+        place = _triplets(
+            [(row, j, gain) for j, (row, _, gain) in enumerate(laws.control)], (n, len(laws.control))
         )
         G = G + place @ ctrl
-    E = sp.diags_array(ev) @ vmap - _inductance_matrix(netlist, circuit) @ imap
-    F = sp.csr_array((f_vals, (f_rows, f_cols)), shape=(n, len(inputs)))
+    E = _triplets(laws.dv, (n, n)) @ vmap + _triplets(laws.di, (n, n)) @ imap
+    F = _triplets(laws.u, (n, len(netlist.sources)))
     return _Equations(_clean(G), _clean(E), F, vmap, imap)
 
 

@@ -430,3 +430,45 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
         values = ", ".join(f"{complex(*e):.8g}" for e in case["eigenvalues"])
         out.append(f"{params}: {case['stability']}; eigenvalues {values}")
     return "\n".join(out) + "\n"
+
+
+def symbolic_dict(model: Any) -> dict[str, Any]:
+    """JSON for ``analyze --symbolic``: entries as sympy strings (``sympy.sympify`` reads them)."""
+    from .symbolic import format_matrix
+
+    doc: dict[str, Any] = {
+        "symbols": {name: value for name, (_, value) in model.symbols.items()},
+    }
+    for key in ("A", "B", "C", "D"):
+        doc[key] = format_matrix(getattr(model, key))
+    if not model.D1.is_zero_matrix:
+        doc["D1"] = format_matrix(model.D1)
+    return doc
+
+
+def symbolic_text(model: Any) -> str:
+    """The non-zero symbolic entries of each matrix, labelled by state, input and output."""
+    import sympy
+
+    symbols = ", ".join(f"{name} = {value:g}" for name, (_, value) in model.symbols.items())
+    out = ["", f"symbolic model (sympy; netlist values: {symbols or 'none, all substituted'})"]
+    labels = {
+        "A": (model.states, model.states),
+        "B": (model.states, model.inputs),
+        "C": (model.outputs, model.states),
+        "D": (model.outputs, model.inputs),
+        "D1": (model.outputs, model.inputs),
+    }
+    for key, (rows, cols) in labels.items():
+        matrix = getattr(model, key)
+        if key == "D1" and matrix.is_zero_matrix:
+            continue
+        entries = [
+            f"  {key}[{rows[i]}, {cols[j]}] = {sympy.sstr(matrix[i, j])}"
+            for i in range(matrix.rows)
+            for j in range(matrix.cols)
+            if matrix[i, j] != 0
+        ]
+        out.append(f"{key} ({matrix.rows}x{matrix.cols}), non-zero entries:" if entries else f"{key} = 0")
+        out.extend(entries)
+    return "\n".join(out) + "\n"

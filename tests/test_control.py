@@ -127,3 +127,26 @@ def test_to_scipy_and_control() -> None:
     except ImportError:
         with pytest.raises(ImportError, match="pip install control"):
             model.to_control()
+
+
+def test_frequency_response_matches_circuit1_closed_form() -> None:
+    """v(a)/Vin = Z/(R1 + Z) with Z = R2 ∥ sL1 ∥ 1/(sC1) (case 2: R = 100, L = C = 1).
+
+    rtol 1e-12: both sides are a handful of complex operations at each frequency.
+    """
+    model = compile_file("circuit1.cir", {"R1": 100, "R2": 100})
+    omega = control.frequency_grid(model, 50)
+    assert omega[0] == pytest.approx(0.01) and omega[-1] == pytest.approx(100)  # |λ| = 1, two decades
+    h = control.frequency_response(model, omega)[:, model.outputs.index("v(a)"), 0]
+    s = 1j * omega
+    Z = 1 / (1 / 100 + 1 / s + s)
+    np.testing.assert_allclose(h, Z / (100 + Z), rtol=1e-12)
+
+
+def test_bode_png_is_written(tmp_path: Path) -> None:
+    target = tmp_path / "bode.png"
+    result = CliRunner().invoke(
+        main, ["analyze", str(NETLISTS / "circuit2.cir"), "--bode", str(target), "--eig", "none"]
+    )
+    assert result.exit_code == 0, result.output
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

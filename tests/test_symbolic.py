@@ -1,0 +1,160 @@
+"""Symbolic matrices (--symbolic): the seeds' formulas, and agreement with the numeric compiler.
+
+Tolerances:
+* seed formulas: exact — ``sympy.simplify(ours − seed)`` must be the zero matrix;
+* symbolic evaluated at the netlist's values vs the numeric compiler: 1e-10
+  of each matrix's largest entry — the symbolic side is exact (evaluated at
+  30 digits), the numeric side accumulates a few roundings per entry through
+  one or two LU solves of well-conditioned systems; 1e-10 leaves room for
+  that and still catches any wrong sign, term or factor.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import sympy
+from click.testing import CliRunner
+
+from netlistdyn.cli import main
+from netlistdyn.errors import UsageError
+from netlistdyn.formulate import compile_netlist
+from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.symbolic import SYMBOLIC_STATE_LIMIT, symbolic_model
+
+from .conftest import NETLISTS, compile_file
+
+NUMERIC_RTOL = 1e-10
+
+
+def _symbols(model, *names):
+    return [model.symbols[n][0] for n in names]
+
+
+def _assert_equal(ours: sympy.MatrixBase, seed: sympy.MatrixBase) -> None:
+    difference = sympy.simplify(sympy.Matrix(ours) - seed)
+    assert difference.is_zero_matrix, f"differs from the seed by {difference}"
+
+
+def test_circuit1_matches_seed_formula() -> None:
+    model = symbolic_model(parse_file(NETLISTS / "circuit1.cir"))
+    R1, R2, L1, C1 = _symbols(model, "R1", "R2", "L1", "C1")
+    assert model.states == ("q(C1)", "i(L1)")
+    _assert_equal(model.A, sympy.Matrix([[-1 / (R1 * C1) - 1 / (R2 * C1), -1], [1 / (L1 * C1), 0]]))
+    _assert_equal(model.B, sympy.Matrix([[1 / R1], [0]]))
+
+
+def test_circuit2_matches_seed_formula() -> None:
+    model = symbolic_model(parse_file(NETLISTS / "circuit2.cir"))
+    R1, R2, L1, L2, L3, C1 = _symbols(model, "R1", "R2", "L1", "L2", "L3", "C1")
+    assert model.states == ("q(C1)", "i(L1)", "i(L2)", "i(L3)")
+    seed_A = sympy.Matrix(
+        [
+            [0, -1, -1, 1],
+            [1 / (L1 * C1), 0, 0, 0],
+            [1 / (L2 * C1), 0, -R2 / L2, 0],
+            [-1 / (L3 * C1), 0, 0, -R1 / L3],
+        ]
+    )
+    _assert_equal(model.A, seed_A)
+    _assert_equal(model.B, sympy.Matrix([[0], [0], [0], [1 / L3]]))
+
+
+def test_two_blocks_in_mechanical_names() -> None:
+    """Springs enter as stiffness k, dampers as d, masses as m (not their analog L = 1/k, R = 1/d)."""
+    model = symbolic_model(parse_file(NETLISTS / "two_blocks.cir"))
+    m1, m2, k1, k2, d1, d2 = _symbols(model, "m1", "m2", "k1", "k2", "d1", "d2")
+    seed_A = sympy.Matrix(
+        [
+            [-(d1 + d2) / m1, d2 / m2, -1, 1],
+            [d2 / m1, -d2 / m2, 0, -1],
+            [k1 / m1, 0, 0, 0],
+            [-k2 / m1, k2 / m2, 0, 0],
+        ]
+    )
+    assert model.states == ("p(m1)", "p(m2)", "f(k1)", "f(k2)")
+    _assert_equal(model.A, seed_A)
+
+
+NETLIST_FILES = sorted(p.name for p in NETLISTS.glob("*.cir")) + [
+    f"stress/{p.name}" for p in sorted((NETLISTS / "stress").glob("*.cir"))
+]
+
+
+@pytest.mark.parametrize("name", NETLIST_FILES)
+def test_symbolic_evaluates_to_the_numeric_model(name: str) -> None:
+    numeric = compile_file(name)
+    if numeric.nstates > SYMBOLIC_STATE_LIMIT:
+        with pytest.raises(UsageError, match="small circuits"):
+            symbolic_model(parse_file(NETLISTS / name))
+        return
+    model = symbolic_model(parse_file(NETLISTS / name))
+    assert (model.states, model.inputs, model.outputs) == (numeric.states, numeric.inputs, numeric.outputs)
+    values = model.numeric()
+    for key in ("A", "B", "C", "D", "D1"):
+        expected = getattr(numeric, key)
+        scale = max(float(np.abs(expected).max(initial=0.0)), 1e-300)
+        np.testing.assert_allclose(values[key], expected, rtol=0, atol=NUMERIC_RTOL * scale, err_msg=key)
+
+
+def test_symbolic_with_displacement_outputs_and_coupling() -> None:
+    text = """coupled inductors with a displacement-like integrator output
+V1 in 0 DC 1
+R1 in a 10
+L1 a 0 1m
+L2 b 0 2m
+K1 L1 L2 0.5
+R2 b 0 5
+C1 a 0 1u
+.end
+"""
+    netlist = parse_text(text)
+    outputs = ["v(a)", "i(L2)", "x(a)"]
+    numeric = compile_netlist(netlist, outputs)
+    model = symbolic_model(netlist, outputs)
+    values = model.numeric()
+    for key in ("A", "B", "C", "D"):
+        expected = getattr(numeric, key)
+        scale = max(float(np.abs(expected).max(initial=0.0)), 1e-300)
+        np.testing.assert_allclose(values[key], expected, rtol=0, atol=NUMERIC_RTOL * scale, err_msg=key)
+
+
+def test_keep_substitutes_the_other_values() -> None:
+    """keep=R1: every other element takes its netlist value, as an exact rational."""
+    model = symbolic_model(parse_file(NETLISTS / "circuit1.cir", {"R2": 100}), keep=["r1"])
+    (R1,) = _symbols(model, "R1")
+    assert set(model.symbols) == {"R1"}
+    _assert_equal(model.A, sympy.Matrix([[-1 / R1 - sympy.Rational(1, 100), -1], [1, 0]]))
+
+
+def test_numeric_overrides_reproduce_the_param_case() -> None:
+    model = symbolic_model(parse_file(NETLISTS / "circuit1.cir"))
+    case2 = compile_file("circuit1.cir", {"R1": 100, "R2": 100})
+    np.testing.assert_allclose(model.numeric({"R1": 100, "R2": 100})["A"], case2.A, rtol=1e-14)
+    with pytest.raises(UsageError, match="no symbol"):
+        model.numeric({"R9": 1})
+
+
+def test_unknown_keep_name_is_refused() -> None:
+    with pytest.raises(UsageError, match="no element r9"):
+        symbolic_model(parse_file(NETLISTS / "circuit1.cir"), keep=["R9"])
+
+
+def test_cli_symbolic_text_and_json(tmp_path) -> None:
+    runner = CliRunner()
+    result = runner.invoke(main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbolic"])
+    assert result.exit_code == 0, result.output
+    assert "-(R1 + R2)/(C1*R1*R2)" in result.output
+    result = runner.invoke(
+        main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbolic=R1,C1", "--format", "json"]
+    )
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["symbolic"]["symbols"] == {"R1": 0.001, "C1": 1.0}
+    A = sympy.Matrix([[sympy.sympify(e) for e in row] for row in data["symbolic"]["A"]])
+    R1, C1 = sympy.symbols("R1 C1")
+    assert sympy.simplify(A - sympy.Matrix([[-1 / (R1 * C1) - 1000 / C1, -1], [1 / C1, 0]])).is_zero_matrix
+    bad = runner.invoke(main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbolic=Q7"])
+    assert bad.exit_code != 0 and "no element q7" in bad.output
