@@ -178,7 +178,7 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # A multiple root perturbed at 50 digits splits by up to ~10^-25: cluster at that level.
         tol = mp.mpf(10) ** (5 - REFINE_DIGITS // 2) * (1 + norm)
         for k in np.flatnonzero(~(abs_err <= first_order)):
-            lam = values[k]
+            lam = values[k] if mp.im(values[k]) else mp.re(values[k])  # real: an mpf, for svd_r
             members = [j for j in range(n) if abs(values[j] - lam) <= tol]
             if len(members) < 2:
                 continue

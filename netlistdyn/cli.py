@@ -522,7 +522,15 @@ def bench(
     help="Values of a .param to sweep (repeatable; equal-length lists go together).",
 )
 @output_option
-@click.option("--jobs", type=int, default=1, show_default=True, help="Parallel processes.")
+@click.option("--jobs", type=int, default=1, show_default=True, help="Parallel processes (workers).")
+@click.option(
+    "--scheduler",
+    default="processes",
+    show_default=True,
+    metavar="processes|dask|tcp://HOST:PORT",
+    help="Where the cases run: this machine's process pool, a local Dask cluster of --jobs "
+    "workers, or a running Dask scheduler (needs dask[distributed]; workers must see the netlist).",
+)
 @path_option("--plot", "PNG of the eigenvalues against the swept parameter (root locus).")
 @format_option
 @out_option
@@ -531,18 +539,19 @@ def sweep(
     params: tuple[str, ...],
     outputs: tuple[str, ...],
     jobs: int,
+    scheduler: str,
     plot: str | None,
     fmt: str,
     out: str | None,
 ) -> None:
-    """Eigenvalues and stability for each case of a parameter sweep."""
+    """Eigenvalues and stability for each case of a parameter sweep (compiled once)."""
 
     def body() -> int:
         from .report import sweep_text, to_json
         from .sweep import expand_cases, run_sweep
 
         cases = expand_cases(params)
-        result = run_sweep(netlist, cases, list(outputs) or None, max(jobs, 1))
+        result = run_sweep(netlist, cases, list(outputs) or None, max(jobs, 1), scheduler)
         if plot:
             from .plots import sweep_plot
 

@@ -140,3 +140,14 @@ def test_rounding_level_defective_zero_is_still_marginal() -> None:
     assert eig.verdict == "marginally stable"
     zeros = [m for m in eig.modes if m.value == 0]
     assert len(zeros) == 2 and all(m.abs_error < 1e-6 for m in zeros)
+
+
+def test_critically_damped_double_root() -> None:
+    """Circuit 1 with R1 = R2 = L1 = C1 = 1: s² + 2s + 1, a defective double root at −1 (found by
+    a sweep). It is real, so the 50-digit check must take the real SVD path; the error bound is
+    Hölder's √(eps·‖A‖) ≈ 2e-8 per unit, and the distance to −1 must be within it."""
+    eig = analyze_eigenvalues(compile_file("circuit1.cir", {"R1": 1, "R2": 1}).A_sparse)
+    assert eig.verdict == "asymptotically stable"
+    assert len(eig.modes) == 2
+    for mode in eig.modes:
+        assert abs(mode.value + 1) <= mode.abs_error < 1e-6

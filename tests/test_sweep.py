@@ -1,0 +1,79 @@
+"""Sweeps: compiled once, re-evaluated per case on the same normal tree, locally or on Dask.
+
+Re-evaluation runs exactly the operations a fresh compile runs on the same
+tree, so the matrices must agree to rounding (rtol 1e-13: a few ulps).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+import netlistdyn.formulate as formulate_module
+from netlistdyn.errors import UsageError
+from netlistdyn.formulate import compile_netlist, formulate, recompile
+from netlistdyn.parser import parse_file
+from netlistdyn.sweep import run_sweep
+
+from .conftest import NETLISTS
+
+SAME_RTOL = 1e-13
+
+
+@pytest.mark.parametrize(
+    ("name", "cases"),
+    [
+        ("circuit1.cir", [{"r1": 1e-3, "r2": 1e-3}, {"r1": 100.0, "r2": 100.0}, {"r1": -5.0, "r2": 1.0}]),
+        ("blocks_pendulum.cir", [{"l": 1.0, "inv": 0.0}, {"l": 0.25, "inv": 1.0}, {"l": 4.0, "inv": 1.0}]),
+        ("gear_train.cir", [{}, {}]),
+    ],
+)
+def test_recompile_equals_a_fresh_compile(name: str, cases: list[dict[str, float]]) -> None:
+    first = formulate(parse_file(NETLISTS / name, cases[0]))
+    for params in cases:
+        netlist = parse_file(NETLISTS / name, params)
+        again, fresh = recompile(first, netlist), compile_netlist(netlist)
+        assert again.states == fresh.states
+        for key in ("A", "B", "C", "D", "D1"):
+            np.testing.assert_allclose(getattr(again, key), getattr(fresh, key), rtol=SAME_RTOL, atol=0)
+
+
+def test_sweep_searches_for_a_tree_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = []
+    original = formulate_module.normal_tree
+    monkeypatch.setattr(formulate_module, "normal_tree", lambda c: calls.append(1) or original(c))
+    cases = [{"r1": r, "r2": r} for r in np.logspace(-3, 2, 6)]
+    result = run_sweep(str(NETLISTS / "circuit1.cir"), cases, None, jobs=1)
+    assert len(calls) == 1
+    assert all(case["stability"] == "asymptotically stable" for case in result)
+
+
+def test_a_failing_first_case_does_not_stop_the_sweep() -> None:
+    """R1 = 0 is refused by the parser; the sweep compiles from the next case and reports the error."""
+    cases = [{"r1": 0.0, "r2": 1.0}, {"r1": 100.0, "r2": 100.0}]
+    first, second = run_sweep(str(NETLISTS / "circuit1.cir"), cases, None, jobs=1)
+    assert "zero" in first["error"]
+    assert len(second["eigenvalues"]) == 2
+
+
+def test_dask_scheduler_gives_the_process_pool_result() -> None:
+    pytest.importorskip("dask.distributed")
+    cases = [{"r1": r, "r2": r} for r in (1e-3, 1.0, 100.0)]
+    path = str(NETLISTS / "circuit1.cir")
+    local = run_sweep(path, cases, None, jobs=2)
+    on_dask = run_sweep(path, cases, None, jobs=2, scheduler="dask")
+    assert on_dask == local
+
+
+def test_dask_missing_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(UsageError, match=r"pip install 'dask\[distributed\]'"):
+        run_sweep(str(NETLISTS / "circuit1.cir"), [{"r1": 1.0}], None, jobs=1, scheduler="dask")
+
+
+def test_unreachable_dask_scheduler_is_a_usage_error() -> None:
+    pytest.importorskip("dask.distributed")
+    with pytest.raises(UsageError, match="cannot reach"):
+        run_sweep(str(NETLISTS / "circuit1.cir"), [{"r1": 1.0}], None, jobs=1, scheduler="tcp://127.0.0.1:9")
