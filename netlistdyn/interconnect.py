@@ -9,7 +9,8 @@ D1 = D2 = 0 and negative feedback this is the seed's
 [[A1, −B1 C2], [B2 C1, A2]]. With feedthrough the algebraic loop
 (I − sign·D1 D2) is solved and must be invertible.
 
-States are prefixed with each model's name (``m1.q(C1)``); models with
+States, inputs and outputs are prefixed with their model's name
+(``m1.q(C1)``, ``m1.V1``, ``m2.v(out)``); models with
 input-derivative terms (D1 ≠ 0) are refused, since the derivative of an
 interconnected signal is not in the state.
 """
@@ -19,13 +20,13 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import ControlDimension
+from .errors import ControlDimension, UsageError
 from .model import CompileInfo, StateSpaceModel
 
 
 def _check_plain(model: StateSpaceModel, name: str) -> None:
     if model.has_input_derivative:
-        raise ValueError(f"{name} has input-derivative terms (D1 ≠ 0): it cannot be interconnected")
+        raise UsageError(f"{name} has input-derivative terms (D1 ≠ 0): it cannot be interconnected")
 
 
 def _build(
@@ -75,7 +76,9 @@ def series(
     C = np.hstack([m2.D @ m1.C, m2.C])
     D = m2.D @ m1.D
     states = tuple(f"{names[0]}.{s}" for s in m1.states) + tuple(f"{names[1]}.{s}" for s in m2.states)
-    return _build(A, B, C, D, states, m1.inputs, m2.outputs, f"series({m1.title}, {m2.title})")
+    inputs = tuple(f"{names[0]}.{u}" for u in m1.inputs)
+    outputs = tuple(f"{names[1]}.{y}" for y in m2.outputs)
+    return _build(A, B, C, D, states, inputs, outputs, f"series({m1.title}, {m2.title})")
 
 
 def feedback(
@@ -87,7 +90,7 @@ def feedback(
     ------
     ControlDimension
         When the two models' signals do not match in number.
-    ValueError
+    UsageError
         When the algebraic loop through the feedthroughs has no unique solution.
     """
     if m1.noutputs != m2.ninputs or m2.noutputs != m1.ninputs:
@@ -102,7 +105,7 @@ def feedback(
     # u1 = r + s y2, y2 = C2 x2 + D2 y1, y1 = C1 x1 + D1 u1  ⇒  (I − s D1 D2) y1 = C1 x1 + s D1 C2 x2 + D1 r
     loop = np.eye(m1.noutputs) - sign * D1 @ D2
     if np.linalg.cond(loop) > 1e12:
-        raise ValueError("feedback: the algebraic loop I − sign·D1·D2 is singular")
+        raise UsageError("feedback: the algebraic loop I − sign·D1·D2 is singular")
     L = np.linalg.inv(loop)
     Cy = L @ np.hstack([C1, sign * D1 @ C2])  # y1 = Cy x + Dy r
     Dy = L @ D1
@@ -114,4 +117,20 @@ def feedback(
     A = A + np.vstack([B1 @ u1_x, B2 @ Cy])
     B = np.vstack([B1 @ u1_r, B2 @ Dy])
     states = tuple(f"{names[0]}.{s}" for s in m1.states) + tuple(f"{names[1]}.{s}" for s in m2.states)
-    return _build(A, B, Cy, Dy, states, m1.inputs, m1.outputs, f"feedback({m1.title}, {m2.title})")
+    inputs = tuple(f"{names[0]}.{u}" for u in m1.inputs)
+    outputs = tuple(f"{names[0]}.{y}" for y in m1.outputs)
+    return _build(A, B, Cy, Dy, states, inputs, outputs, f"feedback({m1.title}, {m2.title})")
+
+
+def connection_names(
+    m1: StateSpaceModel, m2: StateSpaceModel, how: str, names: tuple[str, str], sign: float = -1.0
+) -> list[str]:
+    """The signal links of :func:`series` or :func:`feedback`, e.g. ``plant.v(a) -> sensor.V1``."""
+    forward = [f"{names[0]}.{y} -> {names[1]}.{u}" for y, u in zip(m1.outputs, m2.inputs, strict=True)]
+    if how == "series":
+        return forward
+    back = "+" if sign > 0 else "-"
+    return forward + [
+        f"{names[1]}.{y} -> {names[0]}.{u} (sign {back}; the closed loop's input {names[0]}.{u} is added)"
+        for y, u in zip(m2.outputs, m1.inputs, strict=True)
+    ]

@@ -126,7 +126,7 @@ def _unit_of_state(name: str) -> str:
         "p": "momentum",
         "f": "force",
         "x": "displacement",
-    }.get(name.split("(", 1)[0], "")
+    }.get(name.split("(", 1)[0].rsplit(".", 1)[-1], "")  # plant.q(C1) after connect
 
 
 def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) -> str:
