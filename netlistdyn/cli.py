@@ -166,6 +166,11 @@ out_option = click.option(
     help="Also give A, B, C, D in terms of the element names (sympy, small circuits). "
     "--symbolic=R1,C1 keeps only those symbolic; the others take their (--param) values.",
 )
+@click.option(
+    "--canonical",
+    is_flag=True,
+    help="Controller and observer canonical (companion) forms, as the seeds build them.",
+)
 @path_option("--bode", "PNG of the frequency response of every input/output pair.")
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @out_option
@@ -178,6 +183,7 @@ def analyze(
     control_report: bool,
     minimal: bool,
     symbolic: str | None,
+    canonical: bool,
     bode: str | None,
     save: str | None,
     out: str | None,
@@ -185,6 +191,9 @@ def analyze(
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
     from .analysis import analyze_eigenvalues
     from .report import (
+        canonical_dict,
+        canonical_forms,
+        canonical_text,
         control_dict,
         control_text,
         model_dict,
@@ -221,6 +230,7 @@ def analyze(
                 structure = control.structure(model)
             tfs = control.transfer_functions(model) if control_report else []
         analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig)
+        forms = canonical_forms(model) if canonical else None
         if save:
             from .exports import save_model
 
@@ -234,6 +244,8 @@ def analyze(
             doc["netlist"] = netlist
             if control_report:
                 doc["control"] = control_dict(structure, tfs)
+            if forms is not None:
+                doc["canonical"] = canonical_dict(forms)
             if sym is not None:
                 doc["symbolic"] = symbolic_dict(sym)
             if notes:
@@ -243,6 +255,8 @@ def analyze(
             text = text_report(model, analysis, netlist)
             if control_report:
                 text += control_text(structure, tfs)
+            if forms is not None:
+                text += canonical_text(model, forms)
             if sym is not None:
                 text += symbolic_text(sym)
             text += "".join(f"note: {n}\n" for n in notes)

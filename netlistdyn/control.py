@@ -261,3 +261,132 @@ def frequency_response(model: StateSpaceModel, omega: np.ndarray) -> np.ndarray:
         units per input unit (V/V, A/V, (m/s)/N, …).
     """
     return np.stack([model.transfer_function(1j * w) for w in np.asarray(omega, dtype=float)])
+
+
+#: Largest model for which canonical forms are formed (Krylov matrices grow ill-conditioned).
+CANONICAL_STATE_LIMIT = 12
+
+
+@dataclass(frozen=True)
+class CanonicalForm:
+    """A companion-form realisation x̃ = T x of a model, as the seeds build them.
+
+    Attributes
+    ----------
+    kind : str
+        ``"controller"`` (Ã has the characteristic polynomial's coefficients
+        in its last row, B̃ = e_n for the chosen input) or ``"observer"``
+        (Â has them in its last column, Ĉ's chosen row = e_nᵀ).
+    signal : str
+        The input (controller form) or output (observer form) used.
+    T : numpy.ndarray
+        The state transformation (x̃ = T x).
+    A, B, C : numpy.ndarray
+        T A T⁻¹, T B, C T⁻¹ (all inputs and outputs).
+    condition : float
+        2-norm condition number of T: the transformation amplifies relative
+        errors by up to this factor.
+    residual : float
+        Largest deviation of the computed T A T⁻¹ from the exact companion
+        pattern (its structural zeros and ones), as computed.
+    """
+
+    kind: str
+    signal: str
+    T: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    condition: float
+    residual: float
+
+
+def controller_form(model: StateSpaceModel, input: int | None = None) -> CanonicalForm:
+    """Controller canonical form from one input: T = [q; qA; …; qAⁿ⁻¹], q = last row of 𝒞⁻¹.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+    input : int, optional
+        Input column; default: the first input from which the model is controllable.
+
+    Raises
+    ------
+    UsageError
+        When no (or the chosen) input controls every state, or the model is too large.
+    """
+    from .errors import UsageError
+
+    n = model.nstates
+    if n == 0 or n > CANONICAL_STATE_LIMIT:
+        raise UsageError(
+            f"canonical forms are for models of 1 to {CANONICAL_STATE_LIMIT} states; this has {n}"
+        )
+    A = model.A
+    candidates = [input] if input is not None else list(range(model.ninputs))
+    for j in candidates:
+        if _krylov_rank(A, model.B[:, [j]], RANK_RTOL) < n:
+            continue
+        q = np.linalg.inv(_plain_krylov(A, model.B[:, j]))[-1]
+        rows = [q]
+        for _ in range(n - 1):
+            rows.append(rows[-1] @ A)
+        T = np.array(rows)
+        return _companion("controller", model.inputs[j], T, model, transpose=False)
+    raise UsageError("controller form: no input controls every state (see --control)")
+
+
+def observer_form(model: StateSpaceModel, output: int | None = None) -> CanonicalForm:
+    """Observer canonical form from one output, the dual of :func:`controller_form`.
+
+    With (Aᵀ, cᵀ) in controller form through T_c, the observer form uses
+    T = (T_cᵀ)⁻¹, so that Â = T A T⁻¹ = (Aᵀ in controller form)ᵀ: the
+    characteristic polynomial's coefficients fill Â's last column and the
+    chosen row of Ĉ is [0 … 0 1].
+    """
+    from .errors import UsageError
+
+    n = model.nstates
+    if n == 0 or n > CANONICAL_STATE_LIMIT:
+        raise UsageError(
+            f"canonical forms are for models of 1 to {CANONICAL_STATE_LIMIT} states; this has {n}"
+        )
+    A = model.A
+    candidates = [output] if output is not None else list(range(model.noutputs))
+    for i in candidates:
+        c = model.C[i]
+        if _krylov_rank(A.T, c[:, None], RANK_RTOL) < n:
+            continue
+        q = np.linalg.inv(_plain_krylov(A.T, c))[-1]
+        rows = [q]
+        for _ in range(n - 1):
+            rows.append(rows[-1] @ A.T)
+        T = np.linalg.inv(np.array(rows).T)
+        return _companion("observer", model.outputs[i], T, model, transpose=True)
+    raise UsageError("observer form: no output observes every state (see --control)")
+
+
+def _plain_krylov(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """[b, Ab, …, Aⁿ⁻¹b] without normalisation (the seeds' ctrb for one column)."""
+    cols = [b]
+    for _ in range(A.shape[0] - 1):
+        cols.append(A @ cols[-1])
+    return np.column_stack(cols)
+
+
+def _companion(
+    kind: str, signal: str, T: np.ndarray, model: StateSpaceModel, transpose: bool
+) -> CanonicalForm:
+    n = model.nstates
+    T_inv = np.linalg.inv(T)
+    A_t = T @ model.A @ T_inv
+    pattern = np.eye(n, k=1)  # controller: superdiagonal ones, free last row
+    free = np.zeros((n, n), dtype=bool)
+    free[-1, :] = True
+    if transpose:
+        pattern, free = pattern.T, free.T
+    residual = float(np.max(np.abs(np.where(free, 0.0, A_t - pattern)))) if n > 1 else 0.0
+    exact = np.where(free, A_t, pattern)
+    return CanonicalForm(
+        kind, signal, T, exact, T @ model.B, model.C @ T_inv, float(np.linalg.cond(T)), residual
+    )

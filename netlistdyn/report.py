@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .analysis import EigenAnalysis
+from .errors import UsageError
 from .model import StateSpaceModel
 
 #: Largest model whose matrices are printed in text and written as nested lists in JSON.
@@ -471,4 +472,56 @@ def symbolic_text(model: Any) -> str:
         ]
         out.append(f"{key} ({matrix.rows}x{matrix.cols}), non-zero entries:" if entries else f"{key} = 0")
         out.extend(entries)
+    return "\n".join(out) + "\n"
+
+
+def canonical_forms(model: StateSpaceModel) -> list[Any]:
+    """Controller and observer forms, or the reason each is unavailable (a string)."""
+    from . import control
+
+    out: list[Any] = []
+    for build in (control.controller_form, control.observer_form):
+        try:
+            out.append(build(model))
+        except UsageError as exc:
+            out.append(str(exc))
+    return out
+
+
+def canonical_dict(forms: Sequence[Any]) -> dict[str, Any]:
+    """JSON for ``analyze --canonical``."""
+    doc: dict[str, Any] = {}
+    for kind, form in zip(("controller", "observer"), forms, strict=True):
+        if isinstance(form, str):
+            doc[kind] = {"unavailable": form}
+            continue
+        doc[kind] = {
+            "signal": form.signal,
+            "T": form.T.tolist(),
+            "A": form.A.tolist(),
+            "B": form.B.tolist(),
+            "C": form.C.tolist(),
+            "condition_T": form.condition,
+            "pattern_residual": form.residual,
+        }
+    return doc
+
+
+def canonical_text(model: StateSpaceModel, forms: Sequence[Any]) -> str:
+    """Both companion forms with their transformation's condition number."""
+    out: list[str] = []
+    for kind, form in zip(("controller", "observer"), forms, strict=True):
+        out.append("")
+        if isinstance(form, str):
+            out.append(f"{kind} form: unavailable ({form})")
+            continue
+        via = "input" if kind == "controller" else "output"
+        out.append(
+            f"{kind} form (x̃ = T x, from {via} {form.signal}; cond(T) = {form.condition:.3g}, "
+            f"companion pattern residual {form.residual:.2g}):"
+        )
+        labels = [f"x̃{k + 1}" for k in range(model.nstates)]
+        out += format_matrix("Ã" if kind == "controller" else "Â", form.A, labels, labels)
+        out += format_matrix("B̃" if kind == "controller" else "B̂", form.B, labels, model.inputs)
+        out += format_matrix("C̃" if kind == "controller" else "Ĉ", form.C, model.outputs, labels)
     return "\n".join(out) + "\n"

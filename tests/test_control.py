@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from netlistdyn import control
 from netlistdyn.cli import main
+from netlistdyn.errors import UsageError
 from netlistdyn.exports import load_model, save_model
 
 from .conftest import NETLISTS, compile_file, match_spectra
@@ -150,3 +151,40 @@ def test_bode_png_is_written(tmp_path: Path) -> None:
     )
     assert result.exit_code == 0, result.output
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_canonical_forms_of_the_cart_match_seed_002() -> None:
+    """Seed 002: Ã's last row [0, 0, −1176.2, 0, 98.1, 0], B̃ = e6; Â is its transpose pattern.
+
+    rtol 1e-4 against the seed's printed digits. Independently: Ã's last row must be minus the
+    characteristic polynomial of A (numpy's poly, rtol 1e-8: the Krylov matrix has cond ~4e3,
+    so T carries a few digits of rounding), and T must map the model onto the form
+    (T A = Ã T to 1e-9 of ‖A‖).
+    """
+    model = compile_file("dipc.cir", outputs=["x(cart)", "angle(r1)", "angle(r2)"])
+    ctrl, obs = control.controller_form(model), control.observer_form(model)
+    np.testing.assert_allclose(ctrl.A[-1], [0, 0, -1176.2, 0, 98.1, 0], rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(ctrl.B[:, 0], np.eye(6)[-1], atol=1e-9)
+    np.testing.assert_allclose(ctrl.A[-1], -np.poly(model.A)[1:][::-1], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(obs.A[:, -1], ctrl.A[-1], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(obs.C[0], np.eye(6)[-1], atol=1e-9)
+    scale = np.abs(model.A).max()
+    for form in (ctrl, obs):
+        np.testing.assert_allclose(
+            form.T @ model.A, form.A @ form.T, atol=1e-9 * scale * np.abs(form.T).max()
+        )
+    # The controller form's C̃ row for the cart carries the seed's transfer-function numerator.
+    np.testing.assert_allclose(ctrl.C[0], [427.716, 0, -54.5, 0, 0.6667, 0], rtol=1e-4, atol=1e-6)
+
+
+def test_canonical_form_refused_when_uncontrollable() -> None:
+    model = compile_file("dipc.cir", outputs=["x(cart)", "x(b1)", "x(b2)"])  # redundant integrators
+    with pytest.raises(UsageError, match="no input controls every state"):
+        control.controller_form(model)
+    result = CliRunner().invoke(
+        main, ["analyze", str(NETLISTS / "circuit1.cir"), "--canonical", "--format", "json", "--eig", "none"]
+    )
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)["canonical"]
+    assert doc["controller"]["signal"] == "Vin"
+    assert doc["observer"]["signal"] == "v(a)"  # v(in) = Vin sees no state; v(a) sees both

@@ -96,6 +96,8 @@ def test_connect_cli_series_and_feedback_match_the_api(tmp_path) -> None:
 
     mismatch = runner.invoke(main, ["connect", "series", plant, sensor])  # plant has 2 outputs
     assert mismatch.exit_code == 2
-    assert mismatch.output.strip() == "netlistdyn: error: series: plant has 2 outputs, sensor expects 1 inputs"
+    assert (
+        mismatch.output.strip() == "netlistdyn: error: series: plant has 2 outputs, sensor expects 1 inputs"
+    )
     misuse = runner.invoke(main, ["connect", "series", plant, saved, "--output2", "v(a)"])
     assert misuse.exit_code == 2 and "saved model" in misuse.output
