@@ -11,9 +11,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import ControlDimension, NetlistError, TopologyError, UsageError
 from .model import StateSpaceModel
+
+if TYPE_CHECKING:
+    from .symbolic import SymbolicModel
 
 __all__ = [
     "ControlDimension",
@@ -22,6 +26,7 @@ __all__ = [
     "TopologyError",
     "UsageError",
     "compile",
+    "symbolic",
 ]
 __version__ = "0.1.0"
 
@@ -50,3 +55,34 @@ def compile(
     from .parser import parse_file
 
     return compile_netlist(parse_file(path, params or {}), outputs)
+
+
+def symbolic(
+    path: str | Path,
+    params: Mapping[str, float] | None = None,
+    outputs: Sequence[str] | None = None,
+    keep: Sequence[str] | None = None,
+) -> SymbolicModel:
+    """Parse a netlist and compile it with element values as sympy symbols.
+
+    Parameters
+    ----------
+    path : str or Path
+        Netlist file.
+    params : Mapping[str, float], optional
+        ``.param`` overrides (they set the values of elements not in ``keep``).
+    outputs : sequence of str, optional
+        Output specifications.
+    keep : sequence of str, optional
+        Element names to keep symbolic; default all.
+
+    Returns
+    -------
+    SymbolicModel
+        ``.A .B .C .D .D1`` as ``sympy.ImmutableMatrix``, the labels, and
+        ``.numeric(values)`` to evaluate them.
+    """
+    from .parser import parse_file
+    from .symbolic import symbolic_model
+
+    return symbolic_model(parse_file(path, params or {}), outputs, keep)

@@ -754,23 +754,34 @@ def _outputs(
     P, Q, R, S = y_solution
     A, B, K = state_solution
     n = circuit.nbranches
-    rows = []
-    for probe in probes:
-        if probe.kind in ("v", "x"):  # x(n) is integrated by add_displacements
-            rows.append(_potential_rows(tree, [probe.nodes], n))
-        else:
-            branch = next(b for b in circuit.branches if b.element.key == probe.element)
-            row = sp.csr_array(equations.imap[[branch.index], :])
-            if probe.kind == "angle":
-                # i = k (x_pivot − x_bob) with L = 1/k, so angle = (x_bob − x_pivot)/l = −L i / l.
-                rod = branch.element
-                assert rod.rod is not None
-                row = row * (-rod.value / rod.rod.length)
-            rows.append(row)
-    if not rows:
+    if not probes:
         empty = sp.csr_array((0, len(classes.x)))
         return empty, sp.csr_array((0, m)), sp.csr_array((0, m))
-    c_w = sp.vstack(rows, format="csr")
+    # Voltage-type outputs in one sparse matrix (one per probe is slow for thousands of nodes).
+    across = [j for j, p in enumerate(probes) if p.kind in ("v", "x")]  # x(n) integrated later
+    potentials = _potential_rows(tree, [probes[j].nodes for j in across], n)
+    place = sp.csr_array(
+        (np.ones(len(across)), (across, range(len(across)))), shape=(len(probes), len(across))
+    )
+    c_w = sp.csr_array(place @ potentials)
+    through = [j for j, p in enumerate(probes) if p.kind not in ("v", "x")]
+    if through:
+        key_branch: dict[str, int] = {}
+        for b in circuit.branches:  # a two-port's current is its first port's
+            key_branch.setdefault(b.element.key, b.index)
+        scale = np.ones(len(through))
+        for r, j in enumerate(through):
+            if probes[j].kind == "angle":
+                # i = k (x_pivot − x_bob) with L = 1/k, so angle = (x_bob − x_pivot)/l = −L i / l.
+                rod = circuit.branches[key_branch[probes[j].element]].element
+                assert rod.rod is not None
+                scale[r] = -rod.value / rod.rod.length
+        picks = [key_branch[probes[j].element] for j in through]
+        currents = sp.diags_array(scale) @ sp.csr_array(equations.imap[picks, :])
+        place = sp.csr_array(
+            (np.ones(len(through)), (through, range(len(through)))), shape=(len(probes), len(through))
+        )
+        c_w = sp.csr_array(c_w + place @ currents)
     zeros_e = sp.csr_array(c_w.shape)
     block = _eliminate_sources_and_excess(c_w, zeros_e, sp.csr_array((len(probes), m)), equations, classes, m)
     c_x = block.x + block.y @ P
