@@ -159,12 +159,15 @@ out_option = click.option(
 @click.option("--minimal", is_flag=True, help="Drop the states that do not reach the outputs; say how many.")
 @click.option(
     "--symbolic",
-    is_flag=False,
-    flag_value="*",
+    is_flag=True,
+    help="Also give A, B, C, D in terms of the element names (sympy, small circuits).",
+)
+@click.option(
+    "--symbols",
     default=None,
-    metavar="[NAMES]",
-    help="Also give A, B, C, D in terms of the element names (sympy, small circuits). "
-    "--symbolic=R1,C1 keeps only those symbolic; the others take their (--param) values.",
+    metavar="NAMES",
+    help="With --symbolic (implied): keep only these elements symbolic, e.g. R1,C1; "
+    "the others take their (--param) values.",
 )
 @click.option(
     "--canonical",
@@ -182,7 +185,8 @@ def analyze(
     eig: str,
     control_report: bool,
     minimal: bool,
-    symbolic: str | None,
+    symbolic: bool,
+    symbols: str | None,
     canonical: bool,
     bode: str | None,
     save: str | None,
@@ -207,12 +211,12 @@ def analyze(
         parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         notes: list[str] = []
         sym = None
-        if symbolic is not None:
+        if symbolic or symbols is not None:
             if minimal:
                 raise UsageError("--symbolic shows the compiled model; it cannot be combined with --minimal")
             from .symbolic import symbolic_model
 
-            keep = None if symbolic == "*" else [n.strip() for n in symbolic.split(",") if n.strip()]
+            keep = None if symbols is None else [n.strip() for n in symbols.split(",") if n.strip()]
             sym = symbolic_model(parsed, list(outputs) or None, keep)
         if minimal or control_report:
             from . import control

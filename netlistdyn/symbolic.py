@@ -145,7 +145,7 @@ def symbolic_model(
     unknown = sorted(wanted - set(valued))
     if unknown:
         raise UsageError(
-            f"--symbolic: no element {', '.join(unknown)} with a value "
+            f"--symbols: no element {', '.join(unknown)} with a value "
             f"(elements: {', '.join(e.name for e in valued.values())})"
         )
     symbols = {e.name: (_symbol(e), _element_unit_value(e)) for key, e in valued.items() if key in wanted}

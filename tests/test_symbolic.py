@@ -148,7 +148,7 @@ def test_cli_symbolic_text_and_json(tmp_path) -> None:
     assert result.exit_code == 0, result.output
     assert "-(R1 + R2)/(C1*R1*R2)" in result.output
     result = runner.invoke(
-        main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbolic=R1,C1", "--format", "json"]
+        main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbols", "R1,C1", "--format", "json"]
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.output)
@@ -156,5 +156,5 @@ def test_cli_symbolic_text_and_json(tmp_path) -> None:
     A = sympy.Matrix([[sympy.sympify(e) for e in row] for row in data["symbolic"]["A"]])
     R1, C1 = sympy.symbols("R1 C1")
     assert sympy.simplify(A - sympy.Matrix([[-1 / (R1 * C1) - 1000 / C1, -1], [1 / C1, 0]])).is_zero_matrix
-    bad = runner.invoke(main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbolic=Q7"])
+    bad = runner.invoke(main, ["analyze", str(NETLISTS / "circuit1.cir"), "--symbols", "Q7"])
     assert bad.exit_code != 0 and "no element q7" in bad.output
