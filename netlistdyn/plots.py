@@ -100,52 +100,37 @@ def bench_plot(report: Any, path: str) -> None:
 
 
 def sweep_plot(cases: Any, path: str) -> None:
-    """Eigenvalues in the complex plane, coloured by case (a root locus)."""
+    """Eigenvalues in the complex plane, coloured by the swept parameter's value (a root locus)."""
     plt = _figure()
-    fig, ax = plt.subplots(figsize=(7, 5.5))
+    from matplotlib.colors import LogNorm, Normalize
+
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
     good = [c for c in cases if "eigenvalues" in c]
-    colours = plt.cm.viridis(np.linspace(0, 1, max(len(good), 2)))
-    for colour, case in zip(colours, good, strict=False):
-        values = np.array(case["eigenvalues"])
-        label = ", ".join(f"{k}={v:g}" for k, v in case["params"].items())
-        ax.plot(values[:, 0], values[:, 1], "x", color=colour, label=label)
+    name = next(iter(good[0]["params"]), None) if good else None
+    values = np.array([c["params"][name] for c in good], dtype=float) if name else np.arange(len(good))
+    positive = values.size and values.min() > 0
+    spread = values.max() / values.min() if positive else 1.0
+    norm = (
+        LogNorm(values.min(), values.max())
+        if positive and spread > 100
+        else Normalize(values.min(), values.max())
+    )
+    for value, case in zip(values, good, strict=True):
+        points = np.array(case["eigenvalues"])
+        if points.size:
+            ax.scatter(
+                points[:, 0], points[:, 1], c=[value] * len(points), cmap="viridis", norm=norm, marker="x"
+            )
+    if good:
+        mappable = plt.cm.ScalarMappable(norm=norm, cmap="viridis")
+        others = [k for k in good[0]["params"] if k != name]
+        label = name + (f" (with {', '.join(others)})" if others else "") if name else "case"
+        fig.colorbar(mappable, ax=ax, label=label)
     ax.axvline(0, color="k", linewidth=0.5)
     ax.set_xlabel("Re λ [1/s]")
     ax.set_ylabel("Im λ [1/s]")
     ax.set_xscale("symlog", linthresh=1e-3)
+    ax.set_title("eigenvalues per case", fontsize=9)
     ax.grid(True, alpha=0.3)
-    if len(good) <= 12:
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    save_figure(fig, path)
-
-
-def bode_plot(model: Any, path: str) -> None:
-    """Magnitude (dB) and phase (degrees) of every input→output pair against ω (rad/s)."""
-    from .control import frequency_grid, frequency_response
-
-    if model.nstates > 400:
-        from .errors import UsageError
-
-        raise UsageError("--bode is for models of up to 400 states")
-    omega = frequency_grid(model)
-    response = frequency_response(model, omega)
-    plt = _figure()
-    fig, (mag, phase) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
-    for i, out in enumerate(model.outputs):
-        for j, inp in enumerate(model.inputs):
-            h = response[:, i, j]
-            if not np.any(h):
-                continue  # this input does not reach this output
-            with np.errstate(divide="ignore"):
-                mag.semilogx(omega, 20 * np.log10(np.abs(h)), label=f"{out}/{inp}", linewidth=1.2)
-            phase.semilogx(omega, np.degrees(np.unwrap(np.angle(h))), linewidth=1.2)
-    mag.set_ylabel("|H(jω)| [dB]")
-    mag.set_title(f"frequency response: {model.title[:70]}", fontsize=9)
-    mag.grid(True, which="both", alpha=0.3)
-    mag.legend(fontsize=8, ncol=2)
-    phase.set_ylabel("phase [deg]")
-    phase.set_xlabel("ω [rad/s]")
-    phase.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     save_figure(fig, path)

@@ -77,3 +77,17 @@ def test_unreachable_dask_scheduler_is_a_usage_error() -> None:
     pytest.importorskip("dask.distributed")
     with pytest.raises(UsageError, match="cannot reach"):
         run_sweep(str(NETLISTS / "circuit1.cir"), [{"r1": 1.0}], None, jobs=1, scheduler="tcp://127.0.0.1:9")
+
+
+def test_sweep_plot_is_written(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from netlistdyn.cli import main
+
+    target = tmp_path / "locus.png"
+    result = CliRunner().invoke(
+        main, ["sweep", str(NETLISTS / "circuit1.cir"), "--param", "R1=log:1e-3:1e2:5", "--plot", str(target)]
+    )
+    assert result.exit_code == 0, result.output
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert result.output.count("asymptotically stable") == 5
