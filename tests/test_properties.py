@@ -134,3 +134,22 @@ def test_passive_networks_have_no_unstable_eigenvalue(lines: list[str]) -> None:
     for mode in eig.modes:
         assert mode.value.real <= 1e-9 * max(radius, 1.0), mode.value
     assert eig.verdict in ("asymptotically stable", "marginally stable")
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rlc_networks())
+def test_symbolic_model_evaluates_to_the_numeric_one(lines: list[str]) -> None:
+    """The exact (sympy) reduction and the floating-point one agree on random networks.
+
+    Same tree, so entry by entry; 1e-9 of each matrix's largest entry: the numeric side's
+    rounding through LU solves of systems whose element values span four decades.
+    """
+    from netlistdyn.symbolic import symbolic_model
+
+    parsed = parse_text(netlist(lines))
+    model = compile_string(netlist(lines))
+    values = symbolic_model(parsed).numeric()
+    for key in ("A", "B", "C", "D", "D1"):
+        expected = getattr(model, key)
+        scale = max(float(np.abs(expected).max(initial=0.0)), 1e-300)
+        np.testing.assert_allclose(values[key], expected, rtol=0, atol=1e-9 * scale, err_msg=key)
