@@ -264,7 +264,11 @@ def simulate_foh(
         h = grid[k] - grid[k - 1]
         if h > 0:
             phi, g0, g1 = prop.matrices(h)
-            x = phi @ x + g0 @ u_prev + g1 @ u[k]
+            with np.errstate(over="ignore", invalid="ignore"):
+                x = phi @ x + g0 @ u_prev + g1 @ u[k]
+            if not np.all(np.isfinite(x)):  # diverged: the caller reports it, nothing to continue
+                states[k:] = np.nan
+                break
         states[k] = x
         u_prev = u[k]
         if progress is not None and k % 2000 == 0:

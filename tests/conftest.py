@@ -29,6 +29,7 @@ def match_spectra(actual, expected, rtol: float, scale: float | None = None) -> 
     actual = list(np.asarray(actual, dtype=complex))
     expected = np.asarray(expected, dtype=complex)
     assert len(actual) == len(expected), f"{len(actual)} eigenvalues, expected {len(expected)}"
+    assert scale is None or scale > 0, "a zero scale would make every comparison 0/0 (always passing)"
     worst = 0.0
     for value in sorted(expected, key=lambda z: -abs(z)):
         j = int(np.argmin([abs(a - value) for a in actual]))
