@@ -134,3 +134,34 @@ def sweep_plot(cases: Any, path: str) -> None:
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def bode_plot(model: Any, path: str) -> None:
+    """Magnitude (dB) and phase (degrees) of every input→output pair against ω (rad/s)."""
+    from .control import frequency_grid, frequency_response
+
+    if model.nstates > 400:
+        from .errors import UsageError
+
+        raise UsageError("--bode is for models of up to 400 states")
+    omega = frequency_grid(model)
+    response = frequency_response(model, omega)
+    plt = _figure()
+    fig, (mag, phase) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    for i, out in enumerate(model.outputs):
+        for j, inp in enumerate(model.inputs):
+            h = response[:, i, j]
+            if not np.any(h):
+                continue  # this input does not reach this output
+            with np.errstate(divide="ignore"):
+                mag.semilogx(omega, 20 * np.log10(np.abs(h)), label=f"{out}/{inp}", linewidth=1.2)
+            phase.semilogx(omega, np.degrees(np.unwrap(np.angle(h))), linewidth=1.2)
+    mag.set_ylabel("|H(jω)| [dB]")
+    mag.set_title(f"frequency response: {model.title[:70]}", fontsize=9)
+    mag.grid(True, which="both", alpha=0.3)
+    mag.legend(fontsize=8, ncol=2)
+    phase.set_ylabel("phase [deg]")
+    phase.set_xlabel("ω [rad/s]")
+    phase.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    save_figure(fig, path)
