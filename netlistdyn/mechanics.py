@@ -147,8 +147,8 @@ def build_mechanical(
     raise AssertionError(keyword)  # pragma: no cover
 
 
-def resolve_rods(elements: Sequence[Element]) -> list[Element]:
-    """Set each rod's tension and analog inductance from the masses it carries.
+def carried_masses(elements: Sequence[Element]) -> dict[str, tuple[Element, ...]]:
+    """The MASS/INERTIA elements each rod carries, by rod key.
 
     A rod carries the mass on its bob node plus, through further rods
     pivoted at that bob, everything hanging below.
@@ -156,36 +156,50 @@ def resolve_rods(elements: Sequence[Element]) -> list[Element]:
     Raises
     ------
     NetlistError
-        For a rod that carries no mass and for rods that form a cycle.
+        For rods that form a cycle.
     """
     rods = [e for e in elements if e.rod is not None]
-    if not rods:
-        return list(elements)
-    mass_at: dict[str, float] = {}
+    masses_at: dict[str, list[Element]] = {}
     for e in elements:
         if e.keyword in ("MASS", "INERTIA"):
-            mass_at[e.nodes[0]] = mass_at.get(e.nodes[0], 0.0) + e.value
+            masses_at.setdefault(e.nodes[0], []).append(e)
     children: dict[str, list[Element]] = {}
     for rod in rods:
         children.setdefault(rod.nodes[0], []).append(rod)
-    carried: dict[str, float] = {}
+    carried: dict[str, tuple[Element, ...]] = {}
 
-    def weight(rod: Element, trail: tuple[str, ...]) -> float:
+    def hanging(rod: Element, trail: tuple[str, ...]) -> tuple[Element, ...]:
         if rod.key in trail:
             cycle = " -> ".join((*trail[trail.index(rod.key) :], rod.key))
             raise NetlistError(f"ROD {rod.name}: rods form a cycle ({cycle})", rod.loc)
         if rod.key not in carried:
             bob = rod.nodes[1]
-            below = sum(weight(c, (*trail, rod.key)) for c in children.get(bob, []))
-            carried[rod.key] = mass_at.get(bob, 0.0) + below
+            below = tuple(m for c in children.get(bob, []) for m in hanging(c, (*trail, rod.key)))
+            carried[rod.key] = (*masses_at.get(bob, []), *below)
         return carried[rod.key]
 
+    for rod in rods:
+        hanging(rod, ())
+    return carried
+
+
+def resolve_rods(elements: Sequence[Element]) -> list[Element]:
+    """Set each rod's tension T = g·(carried mass) and analog inductance ±l/T.
+
+    Raises
+    ------
+    NetlistError
+        For a rod that carries no mass and for rods that form a cycle.
+    """
+    if not any(e.rod is not None for e in elements):
+        return list(elements)
+    carried = carried_masses(elements)
     out = []
     for e in elements:
         if e.rod is None:
             out.append(e)
             continue
-        mass = weight(e, ())
+        mass = sum(m.value for m in carried[e.key])
         if mass == 0:
             raise NetlistError(
                 f"ROD {e.name}: carries no weight (no MASS on node {e.nodes[1]!r} or below it)", e.loc

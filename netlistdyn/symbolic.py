@@ -9,7 +9,8 @@ is the notes' A = [[−1/(R1·C1) − 1/(R2·C1), −1], [1/(L1·C1), 0]].
 
 Symbols are named after the elements (``R1``, ``C1``, ``m1``, ``k1``): a
 spring contributes 1/k1, a damper 1/d1, a mass m1, a gear or motor its ratio.
-Pendulum rods keep their numeric stiffness (T/l, from the masses they carry).
+A pendulum rod of length l carrying masses m… is the spring of stiffness
+±g·(m…)/l, written with the symbols ``l_<rod>`` and ``g`` and the masses' symbols.
 Elements left out of ``keep`` take their netlist values as exact rationals,
 which is how ``.param`` values are substituted.
 """
@@ -33,6 +34,7 @@ from .formulate import (
     formulate,
     primary_maps,
 )
+from .mechanics import carried_masses
 from .netlist import Element, Kind, Netlist
 
 #: Largest model (states) for which symbolic matrices are computed.
@@ -140,7 +142,7 @@ def symbolic_model(
             f"--symbolic is for small circuits: this one has {form.model.nstates} states "
             f"(limit {SYMBOLIC_STATE_LIMIT})"
         )
-    valued = {e.key: e for e in netlist.elements if e.kind in _VALUED and e.rod is None}
+    valued = {e.key: e for e in netlist.elements if e.kind in _VALUED}
     wanted = {name.lower() for name in keep} if keep is not None else set(valued)
     unknown = sorted(wanted - set(valued))
     if unknown:
@@ -148,10 +150,24 @@ def symbolic_model(
             f"--symbols: no element {', '.join(unknown)} with a value "
             f"(elements: {', '.join(e.name for e in valued.values())})"
         )
-    symbols = {e.name: (_symbol(e), _element_unit_value(e)) for key, e in valued.items() if key in wanted}
+    symbols = {
+        e.name: (_symbol(e), _element_unit_value(e))
+        for key, e in valued.items()
+        if key in wanted and e.rod is None
+    }
     by_name = {name: sym for name, (sym, _) in symbols.items()}
+    rod_terms = _rod_symbols([e for k, e in valued.items() if k in wanted and e.rod is not None], symbols)
+    carried = carried_masses(netlist.elements)
+
+    def rod_length(rod: Element) -> sympy.Expr:
+        assert rod.rod is not None
+        return rod_terms[rod.key][0] if rod.key in rod_terms else _exact(rod.rod.length)
 
     def value(element: Element) -> sympy.Expr:
+        if element.rod is not None:  # L = ±l / (g · carried mass)
+            g = rod_terms[element.key][1] if element.key in rod_terms else _exact(element.rod.g)
+            sign = -1 if element.rod.inverted else 1
+            return sign * rod_length(element) / (g * sympy.Add(*(value(m) for m in carried[element.key])))
         if element.name in by_name:
             sym = by_name[element.name]
             return 1 / sym if element.keyword in ("SPRING", "DAMPER") else sym
@@ -161,9 +177,29 @@ def symbolic_model(
         sign = 1 if la.value > 0 else -1
         return sign * value(coupling) * sympy.sqrt(value(la) * value(lb))
 
-    A, B, C, D, D1 = _reduce(form, value, mutual)
+    A, B, C, D, D1 = _reduce(form, value, mutual, rod_length)
     model = form.model
     return SymbolicModel(A, B, C, D, D1, model.states, model.inputs, model.outputs, symbols, netlist.title)
+
+
+def _rod_symbols(
+    rods: Sequence[Element], symbols: dict[str, tuple[sympy.Symbol, float]]
+) -> dict[str, tuple[sympy.Symbol, sympy.Symbol]]:
+    """Length ``l_<rod>`` and gravity ``g`` symbols of the kept rods (added to ``symbols``).
+
+    One ``g`` serves every rod when they share its value and no element is
+    called g; otherwise each rod has its own ``g_<rod>``.
+    """
+    shared = len({r.rod.g for r in rods if r.rod is not None}) == 1 and "g" not in symbols
+    out = {}
+    for rod in rods:
+        assert rod.rod is not None
+        l_name, g_name = f"l_{rod.name}", "g" if shared else f"g_{rod.name}"
+        for name, number in ((l_name, rod.rod.length), (g_name, rod.rod.g)):
+            if name not in symbols:
+                symbols[name] = (sympy.Symbol(name, positive=True), number)
+        out[rod.key] = (symbols[l_name][0], symbols[g_name][0])
+    return out
 
 
 def _symbol(element: Element) -> sympy.Symbol:
@@ -241,6 +277,7 @@ def _reduce(
     form: Formulation,
     value: Callable[[Element], sympy.Expr],
     mutual: Callable[[Element, Element, Element], sympy.Expr],
+    rod_length: Callable[[Element], sympy.Expr],
 ) -> tuple[sympy.ImmutableMatrix, ...]:
     """The algebra of :func:`~netlistdyn.formulate.reduce_to_state_space`, exactly."""
     netlist, circuit, tree = form.netlist, form.circuit, form.tree
@@ -295,9 +332,7 @@ def _reduce(
             branch = next(b for b in circuit.branches if b.element.key == probe.element)
             row = imap.extract([branch.index], list(range(n)))
             if probe.kind == "angle":
-                rod = branch.element
-                assert rod.rod is not None
-                row = row * (-_exact(rod.value) / _exact(rod.rod.length))
+                row = row * (-value(branch.element) / rod_length(branch.element))
             rows.append(row)
     k = len(rows)
     c_w = sympy.Matrix.vstack(*rows) if rows else sympy.zeros(0, n)
