@@ -188,3 +188,16 @@ def test_canonical_form_refused_when_uncontrollable() -> None:
     doc = json.loads(result.stdout)["canonical"]
     assert doc["controller"]["signal"] == "Vin"
     assert doc["observer"]["signal"] == "v(a)"  # v(in) = Vin sees no state; v(a) sees both
+
+
+def test_cart_angle_transfer_functions_match_seed_002() -> None:
+    """The siblings of the cart's transfer function: θ1/F = (−1.3333s⁴ + 43.6s²)/den and
+    θ2/F = 43.6s²/den, den = s⁶ − 98.1s⁴ + 1176.2s² (printed to 4-5 digits: rtol 1e-4; the
+    structurally zero coefficients must be below 1e-9 of the largest)."""
+    model = compile_file("dipc.cir", outputs=["x(cart)", "angle(r1)", "angle(r2)"])
+    tfs = {t.output: t for t in control.transfer_functions(model)}
+    seed = {"angle(r1)": [-1.3333, 0, 43.6, 0, 0], "angle(r2)": [43.6, 0, 0]}
+    for name, num in seed.items():
+        tf = tfs[name]
+        np.testing.assert_allclose(tf.num, num, rtol=1e-4, atol=1e-9 * max(abs(c) for c in num))
+        np.testing.assert_allclose(tf.den, [1, 0, -98.1, 0, 1176.2, 0, 0], rtol=1e-4, atol=1e-9)
