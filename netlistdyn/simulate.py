@@ -294,6 +294,8 @@ def _outputs_at(
 #: Above this many requested times, modal propagation steps on its own grid of about this many
 #: points and evaluates every requested time from the grid point before it, vectorised.
 MODAL_GRID_POINTS = 2000
+#: Runs of equal steps up to this long are stepped in Python; longer ones by lfilter.
+FILTER_MIN_RUN = 5000
 #: Requested times evaluated per vectorised block (bounds the temporary arrays).
 MODAL_BLOCK = 20_000
 
@@ -334,8 +336,6 @@ def _modal_grid_states(
     with w_k = h((φ1 − φ2) b̃u_k + φ2 b̃u_{k+1}): a first-order recursive
     filter, run by ``scipy.signal.lfilter`` instead of a Python loop.
     """
-    from scipy.signal import lfilter
-
     zs = np.empty((grid.size, lam.size), dtype=complex)
     zs[0] = z0
     z = z0
@@ -346,6 +346,13 @@ def _modal_grid_states(
         phi1, phi2 = _phi12(lam * h)
         decay = np.exp(lam * h)
         w = h * ((phi1 - phi2) * bu[a:b] + phi2 * bu[a + 1 : b + 1])
+        if b - a <= FILTER_MIN_RUN:
+            for k in range(a, b):
+                z = decay * z + w[k - a]
+                zs[k + 1] = z
+            continue
+        from scipy.signal import lfilter  # ~1 s to import: only for long runs
+
         for j in range(lam.size):
             zs[a + 1 : b + 1, j], _ = lfilter([1.0], [1.0, -decay[j]], w[:, j], zi=[decay[j] * z[j]])
         z = zs[b]
