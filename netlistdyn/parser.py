@@ -145,6 +145,8 @@ def read_lines(path: Path, text: str, stack: tuple[Path, ...] = ()) -> tuple[str
         lines.append(Line(body, loc))
     out: list[Line] = []
     for line in lines:
+        if not tokenize(line.text):
+            raise NetlistError(f"cannot read {line.text!r}: no element or command in it", line.loc)
         word = line.text.split()[0].lower()
         if word == ".end":
             break
