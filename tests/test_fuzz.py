@@ -11,12 +11,23 @@ crashed the parser.)
 
 from __future__ import annotations
 
+import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from netlistdyn.errors import NetlistError, UsageError
 from netlistdyn.formulate import compile_netlist
 from netlistdyn.parser import parse_text
+
+def compile_or_refuse(text: str, outputs: list[str] | None = None) -> None:
+    """Compile, or be refused with a NetlistError/UsageError; a model must hold finite numbers."""
+    try:
+        model = compile_netlist(parse_text(text), outputs)
+    except (NetlistError, UsageError):
+        return
+    for matrix in (model.A, model.B, model.C, model.D, model.D1):
+        assert np.all(np.isfinite(matrix))
+
 
 WORDS = st.sampled_from(
     [
@@ -39,11 +50,7 @@ LINES = st.one_of(
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(LINES, min_size=0, max_size=10))
 def test_malformed_netlists_give_netlist_errors(lines: list[str]) -> None:
-    text = "fuzz\n" + "\n".join(lines) + "\n"
-    try:
-        compile_netlist(parse_text(text))
-    except (NetlistError, UsageError):
-        pass
+    compile_or_refuse("fuzz\n" + "\n".join(lines) + "\n")
 
 
 VALID_BASE = "base\nV1 in 0 DC 1\nR1 in a 1k\nC1 a 0 1u\nL1 a b 1m\nR2 b 0 10\n"
@@ -52,11 +59,7 @@ VALID_BASE = "base\nV1 in 0 DC 1\nR1 in a 1k\nC1 a 0 1u\nL1 a b 1m\nR2 b 0 10\n"
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.lists(WORDS, min_size=1, max_size=7).map(" ".join), min_size=1, max_size=3))
 def test_appending_lines_to_a_valid_netlist(lines: list[str]) -> None:
-    text = VALID_BASE + "\n".join(lines) + "\n"
-    try:
-        compile_netlist(parse_text(text))
-    except (NetlistError, UsageError):
-        pass
+    compile_or_refuse(VALID_BASE + "\n".join(lines) + "\n")
 
 
 PROBE_TEXT = st.one_of(
@@ -68,8 +71,4 @@ PROBE_TEXT = st.one_of(
 @settings(max_examples=300, deadline=None)
 @given(PROBE_TEXT)
 def test_malformed_output_specs_give_usage_errors(spec: str) -> None:
-    netlist = parse_text(VALID_BASE)
-    try:
-        compile_netlist(netlist, [spec])
-    except (NetlistError, UsageError):
-        pass
+    compile_or_refuse(VALID_BASE, [spec])
