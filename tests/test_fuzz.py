@@ -19,6 +19,7 @@ from netlistdyn.errors import NetlistError, UsageError
 from netlistdyn.formulate import compile_netlist
 from netlistdyn.parser import parse_text
 
+
 def compile_or_refuse(text: str, outputs: list[str] | None = None) -> None:
     """Compile, or be refused with a NetlistError/UsageError; a model must hold finite numbers."""
     try:
