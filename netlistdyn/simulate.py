@@ -42,6 +42,38 @@ SMOOTH_INPUT_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
+class ExponentialTerms:
+    """Terms c·e^{μ(t − start)}, active from ``start`` on, of the inputs (one row per term).
+
+    What remains of each input after its active terms are subtracted is
+    piecewise linear between the breakpoints (constant for SIN and EXP), so a
+    first-order hold on the remainder plus the exact convolution of each term
+    propagates the state exactly.
+    """
+
+    input: NDArray[np.intp]
+    start: NDArray[np.float64]
+    coef: NDArray[np.complex128]
+    rate: NDArray[np.complex128]
+
+    def __len__(self) -> int:
+        return int(self.input.size)
+
+    def active(self, t0: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """``(len(t0), nterms)``: which terms act on the interval that starts at each t0."""
+        return self.start[None, :] <= np.asarray(t0)[:, None]
+
+    def values(self, t: NDArray[np.float64], active: NDArray[np.bool_], ninputs: int) -> NDArray[np.float64]:
+        """Sum of the active terms at times t, per input: ``(len(t), ninputs)``."""
+        out = np.zeros((t.size, ninputs))
+        for j in range(len(self)):
+            offset = np.maximum(t - self.start[j], 0.0)
+            term = np.where(active[:, j], self.coef[j] * np.exp(self.rate[j] * offset), 0.0)
+            out[:, self.input[j]] += term.real  # terms come in conjugate pairs (or are real)
+        return out
+
+
+@dataclass(frozen=True)
 class InputSignals:
     """The model's inputs as functions of time.
 
@@ -67,6 +99,16 @@ class InputSignals:
         if not self.waveforms:
             return np.zeros((t.size, 0))
         return np.column_stack([w(t) for w in self.waveforms])
+
+    def exponential_terms(self) -> ExponentialTerms:
+        """Every input's exponential parts (SIN, EXP), for exact propagation."""
+        rows = [(j, *term) for j, w in enumerate(self.waveforms) for term in w.exponential_terms()]
+        return ExponentialTerms(
+            np.array([r[0] for r in rows], dtype=np.intp),
+            np.array([r[1] for r in rows], dtype=float),
+            np.array([r[2] for r in rows], dtype=complex),
+            np.array([r[3] for r in rows], dtype=complex),
+        )
 
     def derivative(self, t: NDArray[np.float64], h: float = 1e-12) -> NDArray[np.float64]:
         """Slope of each input (input units per s), for the D1 terms.
@@ -116,21 +158,25 @@ MODAL_COND_LIMIT = 1e4
 
 
 def _phi12(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-    """φ1(z) = (e^z − 1)/z and φ2(z) = (e^z − 1 − z)/z², without cancellation for small |z|."""
+    """φ1(z) = (e^z − 1)/z and φ2(z) = (e^z − 1 − z)/z², without cancellation for small |z|.
+
+    φ1 from ``expm1`` is accurate everywhere; φ2 cancels for small |z| and
+    takes its Taylor series there (|z| < 1/2: 16 terms reach 1e-19).
+    """
+    z = np.asarray(z, dtype=complex)
+    zero = z == 0
+    safe = np.where(zero, 1.0, z)
+    em1 = np.expm1(safe)
+    phi1 = np.where(zero, 1.0, em1 / safe)
     small = np.abs(z) < 0.5
-    safe = np.where(small, 1.0, z)
-    phi1 = np.where(small, 0.0, np.expm1(safe) / safe)
-    phi2 = np.where(small, 0.0, (np.expm1(safe) - safe) / safe**2)
-    term1 = np.ones_like(z)
-    term2 = np.full_like(z, 0.5)
-    series1 = np.zeros_like(z)
-    series2 = np.zeros_like(z)
-    for k in range(1, 25):  # Taylor: φ1 = Σ z^k/(k+1)!, φ2 = Σ z^k/(k+2)!
-        series1 = series1 + term1
-        series2 = series2 + term2
-        term1 = term1 * z / (k + 1)
-        term2 = term2 * z / (k + 2)
-    return np.where(small, series1, phi1), np.where(small, series2, phi2)
+    phi2 = (em1 - safe) / np.where(small, 1.0, safe) ** 2
+    if np.any(small):
+        zs = z[small]
+        series = np.full_like(zs, 1.0 / math.factorial(17))
+        for k in range(16, 1, -1):  # Horner: φ2 = Σ_{k≥0} z^k/(k+2)!
+            series = series * zs + 1.0 / math.factorial(k)
+        phi2[small] = series
+    return phi1, phi2
 
 
 class FohPropagator:
@@ -207,12 +253,18 @@ class FohPropagator:
         return result
 
 
-def refine_grid(times: NDArray[np.float64], signals: InputSignals) -> NDArray[np.float64]:
-    """Union of the requested times and input breakpoints, with substeps for smooth inputs."""
+def refine_grid(
+    times: NDArray[np.float64], signals: InputSignals, smooth: bool = True
+) -> NDArray[np.float64]:
+    """Union of the requested times and input breakpoints, with substeps for smooth inputs.
+
+    ``smooth=False`` leaves out the substeps (for propagation that treats
+    SIN and EXP exactly).
+    """
     tstop = float(times[-1])
     grid = np.union1d(times, signals.breakpoints[signals.breakpoints <= tstop])
     grid = np.union1d(grid, [0.0])
-    if math.isfinite(signals.max_smooth_step):
+    if smooth and math.isfinite(signals.max_smooth_step):
         gaps = np.diff(grid)
         counts = np.maximum(np.ceil(gaps / signals.max_smooth_step).astype(int), 1)
         if np.any(counts > 1):
@@ -252,9 +304,11 @@ def simulate_foh(
     """
     times = np.asarray(times, dtype=float)
     prop = FohPropagator(model.A, model.B)
-    if prop.modal and times.size > MODAL_GRID_POINTS:
-        xs = _modal_at_times(prop, signals, times, x0, progress)
-        return _outputs_at(model, signals, times, xs), xs
+    if prop.modal:
+        # An unstable model may overflow: the non-finite result is reported by the caller.
+        with np.errstate(over="ignore", invalid="ignore"):
+            xs = _modal_at_times(prop, signals, times, x0, progress)
+            return _outputs_at(model, signals, times, xs), xs
     grid = refine_grid(times, signals)
     u = signals(grid)
     n = model.nstates
@@ -291,8 +345,8 @@ def _outputs_at(
     return y
 
 
-#: Above this many requested times, modal propagation steps on its own grid of about this many
-#: points and evaluates every requested time from the grid point before it, vectorised.
+#: Modal propagation steps on its own grid of about this many points (plus the input
+#: breakpoints) and evaluates every requested time from the grid point before it, vectorised.
 MODAL_GRID_POINTS = 2000
 #: Runs of equal steps up to this long are stepped in Python; longer ones by lfilter.
 FILTER_MIN_RUN = 5000
@@ -327,14 +381,18 @@ def _uniform_runs(grid: NDArray[np.float64]) -> list[tuple[int, int, float]]:
 def _modal_grid_states(
     lam: NDArray[np.complex128],
     grid: NDArray[np.float64],
-    bu: NDArray[np.complex128],
+    left: NDArray[np.complex128],
+    right: NDArray[np.complex128],
+    forced: NDArray[np.complex128],
     z0: NDArray[np.complex128],
 ) -> NDArray[np.complex128]:
     """Modal states at every grid point, one linear recurrence per mode and uniform run.
 
     Within a run of equal steps h every mode obeys z_{k+1} = e^{λh} z_k + w_k
-    with w_k = h((φ1 − φ2) b̃u_k + φ2 b̃u_{k+1}): a first-order recursive
-    filter, run by ``scipy.signal.lfilter`` instead of a Python loop.
+    with w_k = h((φ1 − φ2) b̃r_k⁺ + φ2 b̃r_{k+1}⁻) + f_k (``left``, ``right``:
+    the remainder of the inputs at each interval's ends; ``forced``: the
+    exponential terms' exact contribution): a first-order recursive filter,
+    run by ``scipy.signal.lfilter`` for long runs instead of a Python loop.
     """
     zs = np.empty((grid.size, lam.size), dtype=complex)
     zs[0] = z0
@@ -345,7 +403,7 @@ def _modal_grid_states(
             continue
         phi1, phi2 = _phi12(lam * h)
         decay = np.exp(lam * h)
-        w = h * ((phi1 - phi2) * bu[a:b] + phi2 * bu[a + 1 : b + 1])
+        w = h * ((phi1 - phi2) * left[a:b] + phi2 * right[a:b]) + forced[a:b]
         if b - a <= FILTER_MIN_RUN:
             for k in range(a, b):
                 z = decay * z + w[k - a]
@@ -366,39 +424,79 @@ def _modal_at_times(
     x0: NDArray[np.float64] | None,
     progress: Callable[[float], None] | None,
 ) -> NDArray[np.float64]:
-    """States at many times: modal FOH along a coarse grid, then from it to each time.
+    """States at many times: exact modal propagation along a coarse grid, then to each time.
 
-    In modal coordinates z = V⁻¹x every mode is a scalar equation, and for an
-    input linear between grid point t_k and t,
+    In modal coordinates z = V⁻¹x every mode is a scalar equation. Each input
+    is split into exponential terms c·e^{μ(t−start)} (SIN, EXP) and a
+    remainder r that is linear between breakpoints; from grid point t_k to
+    any t before t_{k+1}, with τ = t − t_k,
 
-        z(t) = e^{λτ} z_k + τ(φ1(λτ) − φ2(λτ)) b̃ u(t_k) + τ φ2(λτ) b̃ u(t),  τ = t − t_k,
+        z(t) = e^{λτ} z_k + τ(φ1(λτ) − φ2(λτ)) b̃ r(t_k) + τ φ2(λτ) b̃ r(t)
+               + Σ_terms b̃ c e^{μ(t_k − start)} ∫₀^τ e^{λ(τ−s)} e^{μs} ds,
 
-    exactly as a step of the propagator. The grid holds every input
-    breakpoint (and the sub-steps of smooth inputs), so the input is linear
-    (or within the smooth-input tolerance) from t_k to any later time before
-    t_{k+1}; the cost is a loop over the grid plus array operations over the
-    times, instead of a loop over every requested time.
+    which is exact, so the grid needs only the breakpoints and about
+    :data:`MODAL_GRID_POINTS` points. The cost is a loop over the grid (see
+    :func:`_modal_grid_states`) plus array operations over the times.
     """
     assert prop._modal is not None
     lam, vecs, inv, inv_b = prop._modal
+    terms = signals.exponential_terms()
     tstop = float(times[-1])
     coarse = np.linspace(0.0, tstop, MODAL_GRID_POINTS) if tstop > 0 else np.zeros(1)
-    grid = refine_grid(coarse, signals)
-    bu = signals(grid) @ inv_b.T  # b̃ u at the grid points, (K, n) complex
+    grid = refine_grid(coarse, signals, smooth=False)
+    m = inv_b.shape[1]
     z0 = np.zeros(lam.size, dtype=complex) if x0 is None else inv @ np.asarray(x0, dtype=float)
-    zs = _modal_grid_states(lam, grid, bu, z0.astype(complex))
+    if grid.size == 1:
+        zs = z0[None, :].astype(complex)
+        return np.real(np.repeat(zs, times.size, axis=0) @ vecs.T)
+    starts, ends = grid[:-1], grid[1:]
+    active = terms.active(starts)
+    left = (signals(starts) - terms.values(starts, active, m)) @ inv_b.T
+    right = (signals(ends) - terms.values(ends, active, m)) @ inv_b.T
+    forced = _forced_response(lam, terms, inv_b, starts, ends - starts, active)
+    zs = _modal_grid_states(lam, grid, left, right, forced, z0.astype(complex))
     out = np.empty((times.size, lam.size))
-    for start in range(0, times.size, MODAL_BLOCK):
-        t = times[start : start + MODAL_BLOCK]
-        k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 1)
-        tau = (t - grid[k])[:, None]
-        zt = lam[None, :] * tau
+    for first in range(0, times.size, MODAL_BLOCK):
+        t = times[first : first + MODAL_BLOCK]
+        k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
+        tau = t - grid[k]
+        zt = lam[None, :] * tau[:, None]
         phi1, phi2 = _phi12(zt)
-        now = signals(t) @ inv_b.T
-        z_t = np.exp(zt) * zs[k] + tau * ((phi1 - phi2) * bu[k] + phi2 * now)
-        out[start : start + t.size] = np.real(z_t @ vecs.T)
+        now = (signals(t) - terms.values(t, active[k], m)) @ inv_b.T
+        z_t = (
+            np.exp(zt) * zs[k]
+            + tau[:, None] * ((phi1 - phi2) * left[k] + phi2 * now)
+            + _forced_response(lam, terms, inv_b, grid[k], tau, active[k])
+        )
+        out[first : first + t.size] = np.real(z_t @ vecs.T)
         if progress is not None:
-            progress(min(1.0, (start + t.size) / times.size))
+            progress(min(1.0, (first + t.size) / times.size))
+    return out
+
+
+def _forced_response(
+    lam: NDArray[np.complex128],
+    terms: ExponentialTerms,
+    inv_b: NDArray[np.complex128],
+    t0: NDArray[np.float64],
+    tau: NDArray[np.float64],
+    active: NDArray[np.bool_],
+) -> NDArray[np.complex128]:
+    """Σ over active terms of b̃ c e^{μ(t0 − start)} ∫₀^τ e^{λ(τ−s)} e^{μs} ds, ``(len(t0), n)``.
+
+    The integral is (e^{μτ} − e^{λτ})/(μ − λ), evaluated as τ e^{λτ} φ1((μ−λ)τ)
+    or τ e^{μτ} φ1((λ−μ)τ), whichever has the argument of non-positive real
+    part: no cancellation at resonance (μ ≈ λ) and no overflow for stiff modes.
+    """
+    out = np.zeros((t0.size, lam.size), dtype=complex)
+    for j in range(len(terms)):
+        mu = terms.rate[j]
+        scale = np.where(active[:, j], terms.coef[j] * np.exp(mu * np.maximum(t0 - terms.start[j], 0.0)), 0.0)
+        d = (mu - lam[None, :]) * tau[:, None]
+        decaying = d.real <= 0
+        base = np.where(decaying, lam[None, :], mu) * tau[:, None]
+        phi1, _ = _phi12(np.where(decaying, d, -d))
+        out += (scale[:, None] * inv_b[:, terms.input[j]][None, :]) * (tau[:, None] * np.exp(base) * phi1)
     return out
 
 

@@ -37,6 +37,10 @@ class Dc:
         """True when the waveform is linear between its breakpoints."""
         return True
 
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """Exponential parts (start, c, μ): c·e^{μ(t − start)} from ``start`` on; none here."""
+        return ()
+
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
         return f"DC {self.value!r}"
@@ -99,6 +103,10 @@ class Pulse:
         """PULSE is piecewise linear."""
         return True
 
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """Exponential parts (start, c, μ): c·e^{μ(t − start)} from ``start`` on; none here."""
+        return ()
+
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
         tr, tf, pw, per = self._times()
@@ -142,6 +150,18 @@ class Sin:
         """A sine is smooth, not piecewise linear."""
         return False
 
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """From TD on, VA e^(−θs) sin(ωs + φ) = c e^{μs} + conj, c = VA e^{iφ}/(2i), μ = −θ + iω.
+
+        The rest of the waveform is then constant on each side of TD.
+        """
+        assert self.freq is not None
+        if self.va == 0:
+            return ()
+        c = self.va * complex(math.cos(math.radians(self.phase)), math.sin(math.radians(self.phase))) / 2j
+        mu = complex(-self.theta, 2 * math.pi * self.freq)
+        return ((self.td, c, mu), (self.td, c.conjugate(), mu.conjugate()))
+
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
         return f"SIN({self.vo!r} {self.va!r} {self.freq!r} {self.td!r} {self.theta!r} {self.phase!r})"
@@ -169,6 +189,10 @@ class Pwl:
     def piecewise_linear(self) -> bool:
         """PWL is piecewise linear."""
         return True
+
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """Exponential parts (start, c, μ): c·e^{μ(t − start)} from ``start`` on; none here."""
+        return ()
 
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
@@ -213,6 +237,20 @@ class Exp:
     def piecewise_linear(self) -> bool:
         """Exponentials are smooth, not piecewise linear."""
         return False
+
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """−ΔV e^{−(t−TD1)/TAU1} from TD1 and +ΔV e^{−(t−TD2)/TAU2} from TD2 (ΔV = V2 − V1).
+
+        The rest of the waveform is then constant between the delays.
+        """
+        assert self.tau1 is not None and self.td2 is not None and self.tau2 is not None
+        dv = self.v2 - self.v1
+        if dv == 0:
+            return ()
+        return (
+            (self.td1, complex(-dv), complex(-1.0 / self.tau1)),
+            (self.td2, complex(dv), complex(-1.0 / self.tau2)),
+        )
 
     def spice(self) -> str:
         """The waveform in ngspice syntax."""

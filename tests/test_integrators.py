@@ -169,9 +169,10 @@ def test_initial_condition_lc_tank() -> None:
 
 @pytest.mark.parametrize("R", [1e-3, 100.0, 1e-9])
 def test_exact_at_many_times_matches_mpmath(R: float) -> None:
-    """Above MODAL_GRID_POINTS requested times the exact method steps on its own grid and
-    evaluates each time from the grid point before it (vectorised); it must stay exact
-    (EXACT_RTOL against the 40-digit reference, at 25 of the 20 001 times)."""
+    """The exact method steps on its own grid of about MODAL_GRID_POINTS points and evaluates
+    each requested time from the grid point before it (vectorised); with 10x more times than
+    grid points it must stay exact (EXACT_RTOL against the 40-digit reference, at 25 of the
+    20 001 times)."""
     from netlistdyn import simulate
 
     net = parse_file(NETLISTS / "circuit1.cir", {"R1": R, "R2": R})
@@ -189,8 +190,9 @@ def test_exact_at_many_times_matches_mpmath(R: float) -> None:
 def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """The vectorised path against stepping through every requested time (PULSE, PWL, SIN and
     EXP sources, a D1 term). 2e-9 of the peak: both are exact for piecewise-linear inputs (they
-    differ by rounding over up to 20 000 steps, ~1e-11 measured), and each follows a smooth
-    input by linear pieces within SMOOTH_INPUT_RTOL = 1e-9 on different grids."""
+    differ by rounding over up to 20 000 steps, ~1e-11 measured); for SIN and EXP the
+    vectorised path is exact and the stepwise one follows them by linear pieces within
+    SMOOTH_INPUT_RTOL = 1e-9 (4e-10 measured)."""
     from netlistdyn import simulate
 
     net = parse_file(NETLISTS / name)
@@ -199,6 +201,75 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytes
     signals = input_signals(net, net.tran.tstep, net.tran.tstop)
     times = np.sort(np.r_[0.0, np.random.default_rng(5).uniform(0, net.tran.tstop, 20_000)])
     fast, _ = simulate.simulate_foh(model, signals, times)
-    monkeypatch.setattr(simulate, "MODAL_GRID_POINTS", 10**9)
+    # The stepwise path: through every requested time with the propagator's matrices.
+    monkeypatch.setattr(simulate.FohPropagator, "modal", property(lambda self: False))
     slow, _ = simulate.simulate_foh(model, signals, times)
     assert rel_err(fast, slow) <= 2e-9
+
+
+def test_phi_functions_against_mpmath() -> None:
+    """φ1, φ2 to 4 ulps over |z| from 1e-20 to 1e2 in every direction. The reference carries
+    40 + 2·log10(1/|z|) digits: φ2's cancellation costs twice the exponent."""
+    from netlistdyn.simulate import _phi12
+
+    rng = np.random.default_rng(11)
+    z = 10.0 ** rng.uniform(-20, 2, 400) * np.exp(1j * rng.uniform(0, 2 * np.pi, 400))
+    z = np.r_[z, 0.0, 0.5, -0.5, 0.5j, 1e-300]
+    phi1, phi2 = _phi12(z)
+    for value, p1, p2 in zip(z, phi1, phi2, strict=True):
+        digits = 40 + 2 * max(0, int(-np.log10(abs(value)))) if value else 40
+        with mp.workdps(digits):
+            mz = mp.mpc(value.real, value.imag)
+            e1 = (mp.exp(mz) - 1) / mz if mz != 0 else mp.mpf(1)
+            e2 = (mp.exp(mz) - 1 - mz) / mz**2 if mz != 0 else mp.mpf(0.5)
+            assert abs(complex(e1) - p1) <= 4 * np.finfo(float).eps * abs(complex(e1)), value
+            assert abs(complex(e2) - p2) <= 4 * np.finfo(float).eps * abs(complex(e2)), value
+
+
+def mp_augmented_response(A_aug: np.ndarray, z0: np.ndarray, C_aug: np.ndarray, times) -> np.ndarray:
+    """y(t) = C_aug e^{A_aug t} z0 in 40-digit arithmetic."""
+    with mp.workdps(40):
+        a, z, c = mp.matrix(A_aug.tolist()), mp.matrix(z0.tolist()), mp.matrix(C_aug.tolist())
+        out = []
+        for t in times:
+            y = c * (mp.expm(a * t) * z)
+            out.append([float(y[i, 0]) for i in range(c.rows)])
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    ("source", "generator"),
+    [
+        # u = 0.5 + 2 e^{-100 t} sin(2π·2000 t + 30°): states w1 = e^{-θt} sin(ωt+φ), w2 = e^{-θt} cos(ωt+φ)
+        ("SIN(0.5 2 2k 0 100 30)", "sin"),
+        # u = 1 + (−2 − 1)(1 − e^{−t/0.1m}) for t < TD2 = 1 s (beyond the horizon)
+        ("EXP(1 -2 0 0.1m 1 0.2m)", "exp"),
+    ],
+)
+def test_exact_sin_and_exp_inputs_against_an_augmented_system(source: str, generator: str) -> None:
+    """SIN and EXP sources are propagated exactly (their exponential terms convolved in closed
+    form), not by linear pieces: against the 40-digit exponential of the circuit augmented with
+    the signal generator's own states, to EXACT_RTOL at 25 of 20 001 times."""
+    text = f"rc\nV1 in 0 {source}\nR1 in a 1k\nC1 a 0 100n\nR2 a b 2k\nL1 b 0 10m\n.tran 1u 2m\n.end\n"
+    net = parse_text(text)
+    model = compile_string(text, ["v(a)", "i(L1)"])
+    A, B, C, D = model.A, model.B, model.C, model.D
+    n = model.nstates
+    if generator == "sin":
+        theta, omega, phi = 100.0, 2 * np.pi * 2000.0, np.radians(30.0)
+        G = np.array([[0.0, 0.0, 0.0], [0.0, -theta, omega], [0.0, -omega, -theta]])  # [1, w1, w2]
+        gain = np.array([[0.5, 2.0, 0.0]])
+        g0 = np.array([1.0, np.sin(phi), np.cos(phi)])
+    else:
+        G = np.array([[0.0, 0.0], [0.0, -1.0 / 1e-4]])  # [1, e], u = −2 + 3 e
+        gain = np.array([[-2.0, 3.0]])
+        g0 = np.array([1.0, 1.0])
+    k = G.shape[0]
+    A_aug = np.block([[A, B @ gain], [np.zeros((k, n)), G]])
+    C_aug = np.hstack([C, D @ gain])
+    times = np.linspace(0.0, 2e-3, 20_001)
+    result = integrators.run(model, input_signals(net, 1e-6, 2e-3), times, "exact")
+    assert result.ok
+    picks = np.unique(np.r_[0, np.random.default_rng(7).integers(0, times.size, 23), times.size - 1])
+    ref = mp_augmented_response(A_aug, np.r_[np.zeros(n), g0], C_aug, times[picks])
+    assert rel_err(result.outputs[picks], ref) <= EXACT_RTOL
