@@ -2,19 +2,27 @@
 
 Between consecutive time points the inputs are taken as linear (first-order
 hold); for piecewise-linear waveforms (DC steps, PULSE, PWL) with their
-breakpoints on the grid this is exact, so the only error is rounding in the
-matrix exponential. Each step uses the exponential of the augmented matrix
+breakpoints on the grid this is exact, so the only error is rounding.
+
+When the (balanced) eigenvector matrix is well conditioned, propagation is
+modal: every mode is a scalar equation with φ-function propagators, the state
+is stepped along a grid of about :data:`MODAL_GRID_POINTS` points plus the
+breakpoints, and every requested time is evaluated from the grid point before
+it. SIN and EXP sources are sums of exponentials c·e^{μt} plus a
+piecewise-constant rest (:class:`ExponentialTerms`); each exponential is
+convolved with each mode in closed form, so they are exact as well.
+
+Otherwise each step uses the exponential of the augmented matrix
 
     [[A, B, 0],
      [0, 0, I/h],
      [0, 0, 0]] · h
 
 (Van Loan's construction), which yields Φ = e^{Ah} and the two input
-integrals in one call; propagators are cached per step length.
-
-Smooth waveforms (SIN, EXP) are sampled finely enough that the linear
+integrals in one call; propagators are cached per step length. Smooth
+waveforms (SIN, EXP) are then sampled finely enough that the linear
 interpolation error of the input is below :data:`SMOOTH_INPUT_RTOL` of its
-amplitude; this is the method's stated error.
+amplitude; this is that path's stated error.
 
 Zero state means the state (as shifted by the compiler to absorb input
 derivatives) is zero at t = 0⁻, with every input 0 before t = 0: a DC source
