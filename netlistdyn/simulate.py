@@ -358,8 +358,8 @@ def _outputs_at(
 MODAL_GRID_POINTS = 2000
 #: Runs of equal steps up to this long are stepped in Python; longer ones by lfilter.
 FILTER_MIN_RUN = 5000
-#: Requested times evaluated per vectorised block (bounds the temporary arrays).
-MODAL_BLOCK = 20_000
+#: Entries (times × modes) per vectorised block: bounds each temporary array to ~32 MB.
+MODAL_BLOCK_ENTRIES = 2_000_000
 
 
 def _uniform_runs(grid: NDArray[np.float64]) -> list[tuple[int, int, float]]:
@@ -464,8 +464,9 @@ def _modal_at_times(
     forced = _forced_response(lam, terms, inv_b, starts, ends - starts, active)
     zs = _modal_grid_states(lam, grid, left, right, forced, z0.astype(complex))
     out = np.empty((times.size, lam.size))
-    for first in range(0, times.size, MODAL_BLOCK):
-        t = times[first : first + MODAL_BLOCK]
+    block = max(1, MODAL_BLOCK_ENTRIES // max(lam.size, 1))
+    for first in range(0, times.size, block):
+        t = times[first : first + block]
         k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
         tau = t - grid[k]
         zt = lam[None, :] * tau[:, None]
