@@ -3,7 +3,8 @@
 For each netlist, the outputs at N random times in its .tran horizon, computed
 (a) the default way — modal states on a ~2000-point grid, every time evaluated
 from the grid point before it, SIN/EXP convolved exactly — and (b) by stepping
-through every requested time (SIN/EXP by 1e-9 linear pieces). Prints a
+through every requested time with Van Loan's augmented exponential (SIN/EXP by
+1e-9 linear pieces), an independent algorithm. Prints a
 Markdown table of both run times and their largest difference relative to
 each output's peak::
 

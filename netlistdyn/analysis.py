@@ -242,7 +242,8 @@ def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"
     abs_err = _error_estimates(a, w, vl, vr)
     abs_err = np.where(np.isfinite(abs_err), abs_err, np.inf)
-    rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
+    with np.errstate(over="ignore"):  # a tiny eigenvalue's relative error may be inf, correctly
+        rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
     if a.shape[0] <= REFINE_LIMIT and np.any(rel > TRUST_RTOL):
         w, abs_err = _extended_precision(a)
         method += f"; recomputed in {REFINE_DIGITS}-digit arithmetic (mpmath)"

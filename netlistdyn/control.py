@@ -68,14 +68,16 @@ def _rank_deficient(matrix: np.ndarray, tol: float) -> bool:
     return values.size == 0 or values[-1] <= tol * max(values[0], 1e-300)
 
 
-def _krylov(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """[B AB … Aⁿ⁻¹B] with unit columns (zero columns dropped)."""
+def _krylov(A: np.ndarray, B: np.ndarray, normalise: bool = True) -> np.ndarray:
+    """[B AB … Aⁿ⁻¹B], by default with unit columns (zero columns dropped)."""
     n = A.shape[0]
     blocks, block = [], B
     for _ in range(n):
         blocks.append(block)
         block = A @ block
     K = np.hstack(blocks) if blocks else np.zeros((n, 0))
+    if not normalise:
+        return K
     norms = np.linalg.norm(K, axis=0)
     return K[:, norms > 0] / norms[norms > 0]
 
@@ -301,6 +303,26 @@ class CanonicalForm:
     residual: float
 
 
+def _check_canonical_size(model: StateSpaceModel) -> None:
+    from .errors import UsageError
+
+    n = model.nstates
+    if n == 0 or n > CANONICAL_STATE_LIMIT:
+        raise UsageError(
+            f"canonical forms are for models of 1 to {CANONICAL_STATE_LIMIT} states; this has {n}"
+        )
+
+
+def _controller_transform(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """T = [q; qA; …; qAⁿ⁻¹] with q the last row of [b Ab … Aⁿ⁻¹b]⁻¹; None if (A, b) is uncontrollable."""
+    if _krylov_rank(A, b[:, None], RANK_RTOL) < A.shape[0]:
+        return None
+    rows = [np.linalg.inv(_krylov(A, b[:, None], normalise=False))[-1]]
+    for _ in range(A.shape[0] - 1):
+        rows.append(rows[-1] @ A)
+    return np.array(rows)
+
+
 def controller_form(model: StateSpaceModel, input: int | None = None) -> CanonicalForm:
     """Controller canonical form from one input: T = [q; qA; …; qAⁿ⁻¹], q = last row of 𝒞⁻¹.
 
@@ -317,22 +339,11 @@ def controller_form(model: StateSpaceModel, input: int | None = None) -> Canonic
     """
     from .errors import UsageError
 
-    n = model.nstates
-    if n == 0 or n > CANONICAL_STATE_LIMIT:
-        raise UsageError(
-            f"canonical forms are for models of 1 to {CANONICAL_STATE_LIMIT} states; this has {n}"
-        )
-    A = model.A
-    candidates = [input] if input is not None else list(range(model.ninputs))
-    for j in candidates:
-        if _krylov_rank(A, model.B[:, [j]], RANK_RTOL) < n:
-            continue
-        q = np.linalg.inv(_plain_krylov(A, model.B[:, j]))[-1]
-        rows = [q]
-        for _ in range(n - 1):
-            rows.append(rows[-1] @ A)
-        T = np.array(rows)
-        return _companion("controller", model.inputs[j], T, model, transpose=False)
+    _check_canonical_size(model)
+    for j in [input] if input is not None else range(model.ninputs):
+        T = _controller_transform(model.A, model.B[:, j])
+        if T is not None:
+            return _companion("controller", model.inputs[j], T, model, transpose=False)
     raise UsageError("controller form: no input controls every state (see --control)")
 
 
@@ -346,32 +357,12 @@ def observer_form(model: StateSpaceModel, output: int | None = None) -> Canonica
     """
     from .errors import UsageError
 
-    n = model.nstates
-    if n == 0 or n > CANONICAL_STATE_LIMIT:
-        raise UsageError(
-            f"canonical forms are for models of 1 to {CANONICAL_STATE_LIMIT} states; this has {n}"
-        )
-    A = model.A
-    candidates = [output] if output is not None else list(range(model.noutputs))
-    for i in candidates:
-        c = model.C[i]
-        if _krylov_rank(A.T, c[:, None], RANK_RTOL) < n:
-            continue
-        q = np.linalg.inv(_plain_krylov(A.T, c))[-1]
-        rows = [q]
-        for _ in range(n - 1):
-            rows.append(rows[-1] @ A.T)
-        T = np.linalg.inv(np.array(rows).T)
-        return _companion("observer", model.outputs[i], T, model, transpose=True)
+    _check_canonical_size(model)
+    for i in [output] if output is not None else range(model.noutputs):
+        T_c = _controller_transform(model.A.T, model.C[i])
+        if T_c is not None:
+            return _companion("observer", model.outputs[i], np.linalg.inv(T_c.T), model, transpose=True)
     raise UsageError("observer form: no output observes every state (see --control)")
-
-
-def _plain_krylov(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """[b, Ab, …, Aⁿ⁻¹b] without normalisation (the seeds' ctrb for one column)."""
-    cols = [b]
-    for _ in range(A.shape[0] - 1):
-        cols.append(A @ cols[-1])
-    return np.column_stack(cols)
 
 
 def _companion(

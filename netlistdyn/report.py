@@ -435,15 +435,15 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
 
 def symbolic_dict(model: Any) -> dict[str, Any]:
     """JSON for ``analyze --symbolic``: entries as sympy strings (``sympy.sympify`` reads them)."""
-    from .symbolic import format_matrix
+    from .symbolic import entry_strings
 
     doc: dict[str, Any] = {
         "symbols": {name: value for name, (_, value) in model.symbols.items()},
     }
     for key in ("A", "B", "C", "D"):
-        doc[key] = format_matrix(getattr(model, key))
+        doc[key] = entry_strings(getattr(model, key))
     if not model.D1.is_zero_matrix:
-        doc["D1"] = format_matrix(model.D1)
+        doc["D1"] = entry_strings(model.D1)
     return doc
 
 

@@ -188,14 +188,15 @@ def _phi12(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[n
 
 
 class FohPropagator:
-    """Cached exact first-order-hold propagators of one model.
+    """Exact first-order-hold propagation data of one model.
 
-    Modal when the balanced A has a well-conditioned eigenvector matrix
-    (cond below :data:`MODAL_COND_LIMIT`): Φ = V e^{Λh} V⁻¹ and the input integrals from
-    φ-functions of each λh, which stay accurate however stiff the step
-    (the augmented ``expm`` loses about eps·‖Ah‖, 2.5e-9 of the response for
-    Circuit 1 with R = 1e-9 over 7 s steps). Otherwise the augmented matrix
-    exponential (Van Loan).
+    When the balanced A has a well-conditioned eigenvector matrix (cond below
+    :data:`MODAL_COND_LIMIT`) it holds the eigendecomposition, which
+    :func:`simulate_foh` uses modally with φ-functions of each λh; these stay
+    accurate however stiff the step (the augmented ``expm`` loses about
+    eps·‖Ah‖, 2.5e-9 of the response for Circuit 1 with R = 1e-9 over 7 s
+    steps). Otherwise :meth:`matrices` gives the cached augmented matrix
+    exponential (Van Loan) per step length.
 
     Parameters
     ----------
@@ -230,22 +231,11 @@ class FohPropagator:
         return self._modal is not None
 
     def matrices(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(Φ, Γ0, Γ1) with x(t+h) = Φ x(t) + Γ0 u(t) + Γ1 u(t+h) for linear u."""
+        """(Φ, Γ0, Γ1) with x(t+h) = Φ x(t) + Γ0 u(t) + Γ1 u(t+h) for linear u (Van Loan)."""
         key = float(f"{h:.13g}")
         hit = self._cache.get(key)
         if hit is not None:
             return hit
-        if self._modal is not None:
-            lam, vecs, inv, inv_b = self._modal
-            z = lam * key
-            phi1, phi2 = _phi12(z)
-            phi = np.real((vecs * np.exp(z)) @ inv)
-            g1 = np.real(vecs @ (key * phi1[:, None] * inv_b))
-            g2 = np.real(vecs @ (key * phi2[:, None] * inv_b))
-            result = (phi, g1 - g2, g2)
-            if len(self._cache) < 100_000:
-                self._cache[key] = result
-            return result
         n, m = self.n, self.m
         big = np.zeros((n + 2 * m, n + 2 * m))
         big[:n, :n] = self.A * key

@@ -407,6 +407,6 @@ def _tidy(expr: sympy.Expr) -> sympy.Expr:
     return sympy.factor(expr)
 
 
-def format_matrix(matrix: sympy.MatrixBase) -> list[list[str]]:
+def entry_strings(matrix: sympy.MatrixBase) -> list[list[str]]:
     """Entries as strings (``sympy.sstr``) for reports and JSON."""
     return [[sympy.sstr(matrix[i, j]) for j in range(matrix.cols)] for i in range(matrix.rows)]

@@ -188,9 +188,10 @@ def test_exact_at_many_times_matches_mpmath(R: float) -> None:
 
 @pytest.mark.parametrize("name", ["dipc.cir", "servo_shaft.cir", "waveforms.cir", "cap_loop.cir"])
 def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The vectorised path against stepping through every requested time (PULSE, PWL, SIN and
-    EXP sources, a D1 term). 2e-9 of the peak: both are exact for piecewise-linear inputs (they
-    differ by rounding over up to 20 000 steps, ~1e-11 measured); for SIN and EXP the
+    """The vectorised modal path against stepping through every requested time with Van Loan's
+    augmented exponential (PULSE, PWL, SIN and EXP sources, a D1 term). 2e-9 of the peak: both
+    are exact for piecewise-linear inputs (they differ by rounding over up to 20 000 steps,
+    ~1e-12 measured by benchmarks/bench_foh.py); for SIN and EXP the
     vectorised path is exact and the stepwise one follows them by linear pieces within
     SMOOTH_INPUT_RTOL = 1e-9 (4e-10 measured)."""
     from netlistdyn import simulate
@@ -201,7 +202,7 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytes
     signals = input_signals(net, net.tran.tstep, net.tran.tstop)
     times = np.sort(np.r_[0.0, np.random.default_rng(5).uniform(0, net.tran.tstop, 20_000)])
     fast, _ = simulate.simulate_foh(model, signals, times)
-    # The stepwise path: through every requested time with the propagator's matrices.
+    # The stepwise path: through every requested time with Van Loan's augmented exponential.
     monkeypatch.setattr(simulate.FohPropagator, "modal", property(lambda self: False))
     slow, _ = simulate.simulate_foh(model, signals, times)
     assert rel_err(fast, slow) <= 2e-9
