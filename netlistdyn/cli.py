@@ -610,10 +610,6 @@ def _progress_printer(fmt: str) -> Callable[[float], None] | None:
     return show
 
 
-if __name__ == "__main__":  # pragma: no cover
-    main()
-
-
 MODEL_SUFFIXES = (".json", ".npz", ".mat")
 
 
@@ -697,3 +693,7 @@ def connect(
         return 0
 
     run_guarded(body)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
