@@ -301,6 +301,7 @@ def _rational(
     B = sp.csr_array(sp.diags_array(1.0 / d) @ model.B_sparse)
     events = refine_grid(times, signals)
     u_events = signals(events)
+    u_left = signals.left(events)  # differs at a jump (a PWL time written twice)
     breakpoint_set = set(signals.breakpoints.tolist())
     x = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float) / d  # balanced coordinates
     cache: dict[tuple[float, bool], _PadeStep] = {}
@@ -330,7 +331,7 @@ def _rational(
             states[k] = x
             continue
         u0 = u_events[k - 1]
-        slope = (u_events[k] - u0) / length
+        slope = (u_left[k] - u0) / length
         done = 0.0  # fraction of the interval covered, in units of length
         while done < 1.0 - 1e-15:
             h = length / 2**level
@@ -430,6 +431,7 @@ def _krylov(
     n, m = model.nstates, model.ninputs
     events = refine_grid(times, signals)
     u_events = signals(events)
+    u_left = signals.left(events)
     # Augmented generator for z = [x; u; s]: x' = Ax + Bu, u' = s, s' = 0.
     top = sp.hstack([model.A_sparse, model.B_sparse, sp.csr_array((n, m))])
     mid = sp.hstack([sp.csr_array((m, n + m)), sp.identity(m, format="csr")])
@@ -441,7 +443,7 @@ def _krylov(
     for k in range(1, events.size):
         length = events[k] - events[k - 1]
         if length > 0:
-            slope = (u_events[k] - u_events[k - 1]) / length
+            slope = (u_left[k] - u_events[k - 1]) / length
             z = np.concatenate([x, u_events[k - 1], slope])
             x = spla.expm_multiply(big * length, z)[:n]
         states[k] = x
@@ -490,8 +492,11 @@ def _ivp(
     absolute = atol if atol is not None else rtol * scale * 1e-3
     breaks = signals.breakpoints
 
+    piece_end = [math.inf]
+
     def rhs(t: float, x: np.ndarray) -> np.ndarray:
-        u = signals(np.array([t]))[0]
+        # At the end of a piece the input's left limit (a PWL jump belongs to the next piece).
+        u = (signals.left if t >= piece_end[0] else signals)(np.array([t]))[0]
         return A @ x + B @ u
 
     jac = sp.csc_matrix(A) if large else np.asarray(A)
@@ -509,6 +514,7 @@ def _ivp(
     for a, b in itertools.pairwise(pieces):
         inside = (times >= a) & (times <= b)
         t_eval = np.union1d(times[inside], [b])
+        piece_end[0] = b
         try:
             sol = solve_ivp(rhs, (a, b), x, method=method, t_eval=t_eval, rtol=rtol, atol=absolute, **kwargs)
             message = "" if sol.success else str(sol.message)

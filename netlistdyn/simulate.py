@@ -108,6 +108,18 @@ class InputSignals:
             return np.zeros((t.size, 0))
         return np.column_stack([w(t) for w in self.waveforms])
 
+    def left(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Limits from the left, shape ``(len(t), ninputs)``: differs from the value only at a jump.
+
+        An interval [a, b] between grid points sees the inputs from
+        ``self(a)`` (after any jump at a) to ``self.left(b)`` (before any jump
+        at b), so a jump written into a PWL is a breakpoint of the hold.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if not self.waveforms:
+            return np.zeros((t.size, 0))
+        return np.column_stack([w.left(t) for w in self.waveforms])
+
     def exponential_terms(self) -> ExponentialTerms:
         """Every input's exponential parts (SIN, EXP), for exact propagation."""
         rows = [(j, *term) for j, w in enumerate(self.waveforms) for term in w.exponential_terms()]
@@ -130,7 +142,7 @@ class InputSignals:
         left = t - step >= 0
         lo = np.where(left, t - step, t)
         hi = np.where(left, t, t + step)
-        return (self(hi) - self(lo)) / (hi - lo)[:, None]
+        return (self.left(hi) - self(lo)) / (hi - lo)[:, None]
 
 
 def source_waveform(element: Element) -> Waveform:
@@ -309,6 +321,7 @@ def simulate_foh(
             return _outputs_at(model, signals, times, xs), xs
     grid = refine_grid(times, signals)
     u = signals(grid)
+    u_left = signals.left(grid)
     n = model.nstates
     x = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float).copy()
     states = np.empty((grid.size, n))
@@ -321,7 +334,7 @@ def simulate_foh(
         if h > 0:
             phi, g0, g1 = prop.matrices(h)
             with np.errstate(over="ignore", invalid="ignore"):
-                x = phi @ x + g0 @ u_prev + g1 @ u[k]
+                x = phi @ x + g0 @ u_prev + g1 @ u_left[k]
             if not np.all(np.isfinite(x)):  # diverged: the caller reports it, nothing to continue
                 states[k:] = np.nan
                 break
@@ -450,7 +463,7 @@ def _modal_at_times(
     starts, ends = grid[:-1], grid[1:]
     active = terms.active(starts)
     left = (signals(starts) - terms.values(starts, active, m)) @ inv_b.T
-    right = (signals(ends) - terms.values(ends, active, m)) @ inv_b.T
+    right = (signals.left(ends) - terms.values(ends, active, m)) @ inv_b.T
     forced = _forced_response(lam, terms, inv_b, starts, ends - starts, active)
     zs = _modal_grid_states(lam, grid, left, right, forced, z0.astype(complex))
     out = np.empty((times.size, lam.size))
@@ -461,7 +474,7 @@ def _modal_at_times(
         tau = t - grid[k]
         zt = lam[None, :] * tau[:, None]
         phi1, phi2 = _phi12(zt)
-        now = (signals(t) - terms.values(t, active[k], m)) @ inv_b.T
+        now = (signals.left(t) - terms.values(t, active[k], m)) @ inv_b.T
         z_t = (
             np.exp(zt) * zs[k]
             + tau[:, None] * ((phi1 - phi2) * left[k] + phi2 * now)

@@ -28,6 +28,10 @@ class Dc:
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
         return np.full(np.shape(t), self.value, dtype=float)
 
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
+        return self(t)
+
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
         """Times in [0, tstop] where the waveform or its slope jumps (s)."""
         return ()
@@ -86,6 +90,10 @@ class Pulse:
         out = np.where(fall, self.v2 + (self.v1 - self.v2) * (local - tr - pw) / tf, out)
         return out
 
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
+        return self(t)
+
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
         """Corners of the trapezoid in [0, tstop] (s)."""
         tr, tf, pw, per = self._times()
@@ -141,6 +149,10 @@ class Sin:
         )
         return np.where(tt < self.td, self.vo + self.va * math.sin(phi), wave)
 
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
+        return self(t)
+
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
         """The start of the oscillation, if inside the horizon (s)."""
         return (self.td,) if 0 < self.td <= tstop else ()
@@ -179,7 +191,36 @@ class Pwl:
         return self
 
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
-        return np.interp(np.asarray(t, dtype=float), self.times, self.values)
+        """Value at t; at a repeated time point (a jump) the value after the jump."""
+        return self._interpolate(t, "right")
+
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t: at a repeated time point, the value before the jump."""
+        return self._interpolate(t, "left")
+
+    def _interpolate(self, t: ArrayLike, side: str) -> NDArray[np.float64]:
+        """Linear interpolation, held before the first and after the last point.
+
+        A time written twice (``PWL(0 1 1 1 1 -1 ...)``) is a jump; ``side``
+        says which of its two values a point exactly at that time takes.
+        """
+        tt = np.asarray(t, dtype=float)
+        times = np.asarray(self.times, dtype=float)
+        values = np.asarray(self.values, dtype=float)
+        if side == "right":
+            lo = np.searchsorted(times, tt, side="right") - 1  # last corner at or before t
+        else:
+            lo = np.searchsorted(times, tt, side="left") - 1  # last corner strictly before t
+        lo = np.clip(lo, 0, times.size - 1)
+        hi = np.minimum(lo + 1, times.size - 1)
+        span = times[hi] - times[lo]
+        safe = np.where(span > 0, span, 1.0)
+        frac = np.clip(np.where(span > 0, (tt - times[lo]) / safe, 0.0), 0.0, 1.0)
+        out = values[lo] + frac * (values[hi] - values[lo])
+        out = np.where(tt < times[0], values[0], out)
+        if side == "left":
+            out = np.where(tt <= times[0], values[0], out)
+        return np.where(tt > times[-1], values[-1], out)
 
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
         """The corner times in [0, tstop] (s)."""
@@ -227,6 +268,10 @@ class Exp:
         rise = dv * (1.0 - np.exp(-np.maximum(tt - self.td1, 0.0) / self.tau1))
         fall = -dv * (1.0 - np.exp(-np.maximum(tt - self.td2, 0.0) / self.tau2))
         return self.v1 + rise + np.where(tt > self.td2, fall, 0.0)
+
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
+        return self(t)
 
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
         """The two delay times, where inside the horizon (s)."""
