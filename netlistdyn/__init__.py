@@ -35,6 +35,7 @@ def compile(
     path: str | Path,
     params: Mapping[str, float] | None = None,
     outputs: Sequence[str] | None = None,
+    coordinates: Sequence[str] | str | None = None,
 ) -> StateSpaceModel:
     """Parse and compile a netlist file.
 
@@ -46,6 +47,10 @@ def compile(
         ``.param`` overrides.
     outputs : sequence of str, optional
         Output specifications (default: every node voltage).
+    coordinates : sequence of str or str, optional
+        Present the model in these variables (``["x(b1)", "v(b1)", ...]``):
+        states named by them, outputs the coordinates unless ``outputs`` is
+        given. ``netlistdyn.coordinates.prepare`` also gives T and cond(T).
 
     Returns
     -------
@@ -54,6 +59,10 @@ def compile(
     from .formulate import compile_netlist
     from .parser import parse_file
 
+    if coordinates is not None:
+        from .coordinates import prepare
+
+        return prepare(parse_file(path, params or {}), outputs, coordinates).model
     return compile_netlist(parse_file(path, params or {}), outputs)
 
 

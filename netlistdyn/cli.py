@@ -128,6 +128,33 @@ def load_and_compile(netlist: str, params: tuple[str, ...], outputs: list[str] |
     return parsed, model
 
 
+def load_prepared(
+    netlist: str,
+    params: tuple[str, ...],
+    outputs: tuple[str, ...],
+    coordinates: str | None,
+    ics: tuple[str, ...] = (),
+    extra: tuple[str, ...] = (),
+) -> tuple[Any, Any]:
+    """Parse and compile for ``--coordinates`` and ``--ic`` (see :mod:`netlistdyn.coordinates`)."""
+    from .coordinates import prepare
+    from .parser import parse_file
+
+    parsed = parse_file(netlist, parse_param_overrides(params))
+    prepared = prepare(parsed, list(outputs) or None, coordinates, ics, extra)
+    _print_warnings(prepared.full.info.warnings)
+    return parsed, prepared
+
+
+coordinates_option = click.option(
+    "--coordinates",
+    default=None,
+    metavar="VARS",
+    help="Present the model in these variables, e.g. x(b1),x(b2),v(b1),v(b2) or "
+    "x(cart),angle(r1),omega(r1) (outputs that together determine the state).",
+)
+
+
 out_option = click.option(
     "-o",
     "--out",
@@ -176,6 +203,7 @@ out_option = click.option(
 )
 @path_option("--bode", "PNG of the frequency response of every input/output pair.")
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
+@coordinates_option
 @out_option
 def analyze(
     netlist: str,
@@ -190,6 +218,7 @@ def analyze(
     canonical: bool,
     bode: str | None,
     save: str | None,
+    coordinates: str | None,
     out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
@@ -208,7 +237,16 @@ def analyze(
     )
 
     def body() -> int:
-        parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+        change = None
+        if coordinates is not None:
+            if symbolic or symbols is not None:
+                raise UsageError(
+                    "--symbolic shows the compiler's states; it cannot be combined with --coordinates"
+                )
+            parsed, prepared = load_prepared(netlist, params, outputs, coordinates)
+            model, change = prepared.model, prepared.change
+        else:
+            parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         notes: list[str] = []
         sym = None
         if symbolic or symbols is not None:
@@ -254,9 +292,17 @@ def analyze(
                 doc["symbolic"] = symbolic_dict(sym)
             if notes:
                 doc["notes"] = notes
+            if change is not None:
+                from .coordinates import change_dict
+
+                doc["coordinates"] = change_dict(change)
             emit(to_json(doc), out)
         else:
             text = text_report(model, analysis, netlist)
+            if change is not None:
+                from .coordinates import change_text
+
+                text += change_text(change)
             if control_report:
                 text += control_text(structure, tfs)
             if forms is not None:
@@ -379,7 +425,15 @@ def validate(
 )
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance.")
 @click.option("--atol", type=float, default=None, help="Absolute tolerance (solve_ivp methods).")
-@click.option("--ic", "ics", multiple=True, metavar="STATE=VALUE", help="Initial state, e.g. q(C1)=1e-6.")
+@click.option(
+    "--ic",
+    "ics",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Initial condition on a state (q(C1)=1e-6) or a physical variable (angle(r1)=-0.01, "
+    "x(cart)=0, v(b1)=0.5, omega(r1)=0); states no condition involves start at 0.",
+)
+@coordinates_option
 @click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
 @path_option("--csv", "Write the outputs as CSV.", "csv_path")
 @path_option("--plot", "Write a PNG plot.")
@@ -395,6 +449,7 @@ def simulate(
     rtol: float,
     atol: float | None,
     ics: tuple[str, ...],
+    coordinates: str | None,
     force: bool,
     csv_path: str | None,
     plot: str | None,
@@ -407,29 +462,43 @@ def simulate(
     """
 
     def body() -> int:
+        from dataclasses import replace
+
         import numpy as np
 
         from . import integrators
         from .analysis import analyze_eigenvalues
+        from .coordinates import select_outputs
+        from .parser import parse_file
         from .report import simulation_csv, simulation_dict, simulation_summary, to_json
         from .simulate import choose_horizon, input_signals
+        from .validity import rod_angles, validity_warnings
 
-        parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+        parsed = parse_file(netlist, parse_param_overrides(params))
+        angles = rod_angles(parsed)
+        parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(angles))
+        full = prepared.full
         for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
             if value is not None and not value > 0:
                 raise UsageError(f"{name} must be positive")
-        eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+        eig = analyze_eigenvalues(full.A_sparse, "auto" if full.nstates <= 1000 else "extreme")
         horizon = choose_horizon(parsed, eig, tstop, tstep)
         count = round(horizon.tstop / horizon.tstep)
         if count > 10_000_000:
             raise UsageError(f"{count} output points: choose a larger --tstep")
         times = np.linspace(0.0, horizon.tstop, count + 1)
-        x0 = _initial_state(model, ics)
         signals = input_signals(parsed, horizon.tstep, horizon.tstop)
-        result = integrators.run(model, signals, times, method, rtol, atol, x0, force, _progress_printer(fmt))
-        if not result.ok:
-            click.echo(f"netlistdyn: {result.method} {result.status}: {result.message}", err=True)
+        run = integrators.run(
+            full, signals, times, method, rtol, atol, prepared.x0, force, _progress_printer(fmt)
+        )
+        if not run.ok:
+            click.echo(f"netlistdyn: {run.method} {run.status}: {run.message}", err=True)
             return EXIT_MISMATCH
+        model = select_outputs(full, prepared.shown)
+        result = replace(run, outputs=run.outputs[:, [full.outputs.index(n) for n in prepared.shown]])
+        warnings = validity_warnings(run.time, run.outputs, full.outputs, angles, eig)
+        for warning in warnings:
+            click.echo(f"netlistdyn: warning: {warning}", err=True)
         if csv_path:
             write_atomic(csv_path, simulation_csv(result, model.outputs))
         if plot:
@@ -437,14 +506,25 @@ def simulate(
 
             simulation_plot(result, model.outputs, parsed.title, plot)
         if fmt == "json":
-            emit(to_json(simulation_dict(result, model, horizon)), out)
+            doc = simulation_dict(result, model, horizon)
+            doc["warnings"] = warnings
+            if prepared.change is not None:
+                from .coordinates import change_dict
+
+                doc["coordinates"] = change_dict(prepared.change)
+            emit(to_json(doc), out)
         else:
             note = f" ({horizon.source})"
             summary = (
                 f"{parsed.title}\nsimulated 0..{horizon.tstop:g} s, {times.size} points{note}; "
                 f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
             )
-            emit(summary + simulation_summary(result, model.outputs), out)
+            text = summary + simulation_summary(result, model.outputs)
+            if prepared.change is not None:
+                from .coordinates import change_text
+
+                text += change_text(prepared.change)
+            emit(text, out)
         return 0
 
     run_guarded(body)
@@ -578,24 +658,6 @@ def sweep(
         return 0
 
     run_guarded(body)
-
-
-def _initial_state(model: Any, ics: tuple[str, ...]) -> Any:
-    import numpy as np
-
-    if not ics:
-        return None
-    x0 = np.zeros(model.nstates)
-    index = {name.lower(): k for k, name in enumerate(model.states)}
-    for item in ics:
-        name, sep, text = item.partition("=")
-        value = parse_number(text.strip()) if sep else None
-        key = name.strip().lower()
-        if value is None or key not in index:
-            known = ", ".join(model.states)
-            raise UsageError(f"--ic {item!r}: expected STATE=VALUE with STATE one of {known}")
-        x0[index[key]] = value
-    return x0
 
 
 def _progress_printer(fmt: str) -> Callable[[float], None] | None:

@@ -1,0 +1,633 @@
+"""Physical coordinates: a model in the variables the user names, and initial states in them.
+
+The compiler's states are momenta, spring forces, charges and currents. The
+lecture notes write mechanical models in positions, angles and velocities.
+Both are related by a linear map of the state: every physical variable the
+model can output (``x(node)``, ``angle(rod)``, ``v(node)``, ``i(element)``)
+is a row ``c`` of ``C`` with ``y = c x`` when its ``D`` and ``D1`` rows are
+zero, and ``omega(rod)``, the angular velocity of a rod, is the derivative
+of its angle, the row ``c A`` (when ``c B = 0``).
+
+:func:`change_coordinates` stacks those rows into ``T`` (``z = T x``) and
+returns ``T A T⁻¹``, ``T B``, ``C T⁻¹``, ``D`` with ``cond(T)``; it refuses,
+naming what is missing or dependent, when ``T`` is not invertible.
+:func:`initial_state` solves ``--ic`` conditions given in such variables,
+mixed with state names, for the initial state.
+
+Some states can be tied by a *conserved relation* ``r x = 0`` that holds for
+every input (``r A = 0`` and ``r B = 0``): a displacement integrator added
+for ``x(b1)`` and the spring force ``f(k1) = k1 x(b1)`` that measures the same
+position. Such a relation is zero from the zero state; both functions impose
+the relations that tie two or more states (a relation on one state alone, a
+free momentum nothing acts on, is left free).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from .errors import UsageError
+from .model import StateSpaceModel
+from .netlist import Netlist
+from .probes import default_probes, parse_probe
+from .values import parse_number
+
+#: Relative size below which an entry of a row counts as zero (rows come from
+#: direct solves of small, well-scaled systems; their noise is ~1e-16).
+ROW_TOL = 1e-11
+#: Relative singular-value threshold for rank decisions on scaled rows.
+RANK_TOL = 1e-9
+
+_OMEGA = re.compile(r"^\s*omega\s*\(\s*([^,()\s]+)\s*\)\s*$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One physical variable as the user wrote it, and the output it comes from.
+
+    Attributes
+    ----------
+    text : str
+        As written (``omega(r1)``).
+    name : str
+        Canonical label (``omega(r1)``, ``angle(r1)``, ``x(cart)``).
+    output : str
+        The model output it is computed from (``angle(r1)`` for ``omega(r1)``).
+    derivative : bool
+        True for ``omega(rod)``: the time derivative of ``output``.
+    """
+
+    text: str
+    name: str
+    output: str
+    derivative: bool = False
+
+
+def split_list(text: str) -> list[str]:
+    """Split ``x(a),v(a,b),angle(r1)`` at the commas outside parentheses."""
+    parts, depth, start = [], 0, 0
+    for k, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if ch == "," and depth == 0:
+            parts.append(text[start:k])
+            start = k + 1
+    parts.append(text[start:])
+    return [p.strip() for p in parts if p.strip()]
+
+
+def parse_variable(text: str, netlist: Netlist) -> Variable:
+    """Parse ``x(n)``, ``v(n)``, ``v(a,b)``, ``i(e)``, ``angle(rod)`` or ``omega(rod)``.
+
+    Raises
+    ------
+    UsageError
+        For malformed text and unknown nodes or elements.
+    """
+    match = _OMEGA.match(text)
+    if match:
+        probe = parse_probe(f"angle({match.group(1)})", netlist)
+        return Variable(text, "omega" + probe.name[len("angle") :], probe.name, True)
+    probe = parse_probe(text, netlist)
+    return Variable(text, probe.name, probe.name)
+
+
+def compile_with(
+    netlist: Netlist, outputs: Sequence[str] | None, variables: Sequence[Variable]
+) -> tuple[StateSpaceModel, tuple[str, ...]]:
+    """Compile with the outputs shown to the user plus every listed variable as an output.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    outputs : sequence of str, optional
+        The user's ``--output`` values (default: every node voltage/velocity).
+    variables : sequence of Variable
+        Extra physical variables (coordinates, ``--ic`` conditions, angles);
+        ``omega(rod)`` becomes an output row ``c A``.
+
+    Returns
+    -------
+    model : StateSpaceModel
+        With every needed output (the shown ones first).
+    shown : tuple of str
+        Labels of the outputs to show.
+    """
+    from .formulate import compile_netlist
+
+    probes = [parse_probe(o, netlist) for o in outputs] if outputs else default_probes(netlist)
+    shown = tuple(dict.fromkeys(p.name for p in probes))
+    wanted = list(shown)
+    for v in variables:
+        if v.output not in wanted:
+            wanted.append(v.output)
+    model = compile_netlist(netlist, wanted)
+    derived = [v for v in dict.fromkeys(variables) if v.derivative and v.name not in model.outputs]
+    if derived:
+        rows = np.array([variable_row(model, v, "variable") for v in derived])
+        zeros = sp.csr_array((len(derived), model.ninputs))
+        model = replace(
+            model,
+            C_sparse=sp.csr_array(sp.vstack([model.C_sparse, sp.csr_array(rows)])),
+            D_sparse=sp.csr_array(sp.vstack([model.D_sparse, zeros])),
+            D1_sparse=sp.csr_array(sp.vstack([model.D1_sparse, zeros])),
+            outputs=(*model.outputs, *(v.name for v in derived)),
+        )
+    return model, shown
+
+
+def select_outputs(model: StateSpaceModel, names: Sequence[str]) -> StateSpaceModel:
+    """The model with only the named outputs, in that order."""
+    index = {n: k for k, n in enumerate(model.outputs)}
+    rows = [index[n] for n in names]
+    return replace(
+        model,
+        C_sparse=sp.csr_array(model.C_sparse[rows]),
+        D_sparse=sp.csr_array(model.D_sparse[rows]),
+        D1_sparse=sp.csr_array(model.D1_sparse[rows]),
+        outputs=tuple(names),
+    )
+
+
+def variable_row(model: StateSpaceModel, variable: Variable, what: str) -> NDArray[np.float64]:
+    """The row ``c`` with ``variable = c x`` (the model must output ``variable.output``).
+
+    Raises
+    ------
+    UsageError
+        When the variable depends on an input directly, not on the state alone.
+    """
+    k = model.outputs.index(variable.output)
+    c = np.array(model.C[k], dtype=float)
+    direct = [u for j, u in enumerate(model.inputs) if model.D[k, j] != 0 or model.D1[k, j] != 0]
+    if direct:
+        raise UsageError(
+            f"{what} {variable.text}: depends on the input {', '.join(direct)} directly, "
+            "not on the state alone"
+        )
+    if variable.derivative:
+        through = [
+            u
+            for j, u in enumerate(model.inputs)
+            if abs(c @ model.B[:, j]) > ROW_TOL * _scale(c, model.B[:, j])
+        ]
+        if through:
+            raise UsageError(
+                f"{what} {variable.text}: its rate depends on the input {', '.join(through)} directly"
+            )
+        c = c @ model.A
+    return c
+
+
+def _scale(c: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    return float(np.abs(c) @ np.abs(b)) or 1.0
+
+
+def conserved_relations(model: StateSpaceModel) -> NDArray[np.float64]:
+    """Rows r with r A = 0 and r B = 0 that tie two or more states (see the module notes).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(k, nstates)``, each row scaled to a largest entry of 1, sparse
+        where possible (reduced row echelon form).
+    """
+    n = model.nstates
+    if n == 0:
+        return np.zeros((0, 0))
+    stacked = np.hstack([model.A, model.B])
+    norms = np.linalg.norm(stacked, axis=1)
+    norms[norms == 0] = 1.0
+    scaled = stacked / norms[:, None]
+    _, s, vt = np.linalg.svd(scaled.T)
+    rank = int(np.sum(s > RANK_TOL * (s[0] if s.size else 1.0)))
+    null = vt[rank:] / norms[None, :]  # r = c D⁻¹ for the scaled solution c
+    if null.shape[0] == 0:
+        return np.zeros((0, n))
+    rows = _echelon(null)
+    keep = [r for r in rows if np.sum(np.abs(r) > ROW_TOL * np.abs(r).max()) >= 2]
+    return np.array(keep).reshape(len(keep), n)
+
+
+def _echelon(rows: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """Reduced row echelon form with partial pivoting, tiny entries set to zero."""
+    m = rows.copy()
+    out_rows, col = 0, 0
+    k, n = m.shape
+    while out_rows < k and col < n:
+        pivot = out_rows + int(np.argmax(np.abs(m[out_rows:, col])))
+        if abs(m[pivot, col]) <= RANK_TOL * np.abs(m).max():
+            col += 1
+            continue
+        m[[out_rows, pivot]] = m[[pivot, out_rows]]
+        m[out_rows] /= m[out_rows, col]
+        for r in range(k):
+            if r != out_rows:
+                m[r] -= m[r, col] * m[out_rows]
+        out_rows += 1
+        col += 1
+    result = []
+    for r in m[:out_rows]:
+        r = r / np.abs(r).max()
+        r[np.abs(r) < ROW_TOL] = 0.0
+        result.append(r)
+    return result
+
+
+def _combination(row: NDArray[np.float64], names: Sequence[str], limit: int = 4) -> str:
+    """``f(k1), p(m2)``: the names with the largest weights in a row."""
+    order = np.argsort(-np.abs(row))
+    picked = [names[j] for j in order[:limit] if abs(row[j]) > 1e-6 * np.abs(row).max()]
+    return ", ".join(picked)
+
+
+def _dependent(
+    rows: NDArray[np.float64], base: NDArray[np.float64] | None = None
+) -> list[tuple[int, NDArray[np.float64]]]:
+    """Rows that are combinations of the rows before them (and of ``base``).
+
+    Returns (index, coefficients on the rows before it) for each.
+    """
+    base = np.zeros((0, rows.shape[1])) if base is None else base
+    out = []
+    everything = np.vstack([base, rows])
+    scale = np.linalg.norm(everything, axis=1)
+    scale[scale == 0] = 1.0
+    unit = everything / scale[:, None]
+    nb = base.shape[0]
+    for k in range(rows.shape[0]):
+        if not np.any(rows[k]):
+            out.append((k, np.zeros(0)))
+            continue
+        before = unit[: nb + k]
+        if before.shape[0] == 0:
+            continue
+        coef, *_ = np.linalg.lstsq(before.T, unit[nb + k], rcond=None)
+        if np.linalg.norm(before.T @ coef - unit[nb + k]) < RANK_TOL**0.5:
+            out.append((k, coef[nb:] * scale[nb + k] / scale[nb : nb + k]))
+    return out
+
+
+@dataclass(frozen=True)
+class CoordinateChange:
+    """A model presented in physical coordinates.
+
+    Attributes
+    ----------
+    model : StateSpaceModel
+        ``T A T⁻¹, T B, C T⁻¹, D`` with the coordinates as state names.
+    original : StateSpaceModel
+        The model in the compiler's states.
+    T : numpy.ndarray
+        ``(k, n)``: z = T x over the compiler's states.
+    condition : float
+        2-norm condition number of the square map used (T, or T restricted to
+        the subspace of the conserved relations).
+    relations : numpy.ndarray
+        Conserved relations imposed (rows over the compiler's states).
+    """
+
+    model: StateSpaceModel
+    original: StateSpaceModel
+    T: NDArray[np.float64]
+    condition: float
+    relations: NDArray[np.float64]
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        """The coordinate names, in order."""
+        return self.model.states
+
+
+def _clean(matrix: NDArray[np.float64], cond: float) -> NDArray[np.float64]:
+    """Entries below 8·eps·cond·max|entry| are rounding of exact zeros: set them to 0."""
+    big = np.abs(matrix).max() if matrix.size else 0.0
+    out = matrix.copy()
+    out[np.abs(out) <= 8 * np.finfo(float).eps * cond * big] = 0.0
+    return out
+
+
+def change_coordinates(
+    model: StateSpaceModel, variables: Sequence[Variable], keep_outputs: Sequence[str] | None = None
+) -> CoordinateChange:
+    """Present ``model`` in the listed variables.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+        Compiled with every ``variable.output`` among its outputs
+        (:func:`compile_with`).
+    variables : sequence of Variable
+        The coordinates, in order.
+    keep_outputs : sequence of str, optional
+        Outputs of the result (default: all of ``model``'s).
+
+    Raises
+    ------
+    UsageError
+        When the variables are not an invertible map of the state: naming
+        the dependent ones, or what is missing.
+    """
+    names = [v.name for v in variables]
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise UsageError(f"--coordinates: {', '.join(twice)} listed twice")
+    rows = np.array([variable_row(model, v, "--coordinates") for v in variables]).reshape(
+        len(variables), model.nstates
+    )
+    relations = conserved_relations(model)
+    for k, coef in _dependent(rows, relations):
+        terms = [names[j] for j in range(coef.size) if abs(coef[j]) > 1e-9] if coef.size else []
+        why = f"a combination of {', '.join(terms)}" if terms else "zero for every state"
+        raise UsageError(f"--coordinates: {names[k]} is {why}: the coordinates are dependent")
+    n = model.nstates
+    if len(variables) < n:
+        basis = _null_space(relations) if relations.shape[0] else np.eye(n)
+        square = rows @ basis
+        if (
+            square.shape[0] != square.shape[1]
+            or np.linalg.matrix_rank(square, tol=RANK_TOL * np.abs(square).max()) < square.shape[0]
+        ):
+            missing = _null_space(np.vstack([rows, relations]))
+            what = "; ".join(
+                f"one involving {_combination(missing[:, j], model.states)}" for j in range(missing.shape[1])
+            )
+            raise UsageError(
+                f"--coordinates: {len(variables)} variables for a model of {n - relations.shape[0]} "
+                f"independent states; missing {missing.shape[1]} direction(s): {what}"
+            )
+    else:
+        relations = np.zeros((0, n))
+        basis = np.eye(n)
+        square = rows
+    cond = float(np.linalg.cond(square))
+    inverse = basis @ np.linalg.inv(square)  # x = inverse · z on the relations' subspace
+    A = _clean(rows @ model.A @ inverse, cond)
+    B = _clean(rows @ model.B, cond)
+    outs = list(keep_outputs) if keep_outputs is not None else list(model.outputs)
+    shown = select_outputs(model, outs)
+    C = _clean(shown.C @ inverse, cond)
+    new = replace(
+        shown,
+        A_sparse=sp.csr_array(A),
+        B_sparse=sp.csr_array(B),
+        C_sparse=sp.csr_array(C),
+        states=tuple(names),
+        info=replace(model.info, integrators=()),
+    )
+    return CoordinateChange(new, model, rows, cond, relations)
+
+
+def _null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Orthonormal basis (columns) of {x : rows x = 0}, rows scaled first."""
+    scale = np.linalg.norm(rows, axis=1)
+    scale[scale == 0] = 1.0
+    scaled = rows / scale[:, None]
+    _, s, vt = np.linalg.svd(scaled)
+    rank = int(np.sum(s > RANK_TOL * (s[0] if s.size else 1.0)))
+    return vt[rank:].T
+
+
+def change_text(change: CoordinateChange) -> str:
+    """The report block: T, its condition number and the relations imposed."""
+    from .report import format_matrix
+
+    lines = [f"coordinates: z = T x, cond(T) = {change.condition:.3g}"]
+    lines += format_matrix("T", change.T, change.coordinates, change.original.states)
+    for r in change.relations:
+        terms = " ".join(
+            f"{'+' if c > 0 else '-'} {abs(c):.6g}·{s}"
+            for c, s in zip(r, change.original.states, strict=True)
+            if c
+        )
+        lines.append(f"  conserved relation imposed (0 from the zero state): {terms.lstrip('+ ')} = 0")
+    return "\n".join(lines) + "\n"
+
+
+def change_dict(change: CoordinateChange) -> dict[str, object]:
+    """The JSON block for ``coordinates``."""
+    return {
+        "names": list(change.coordinates),
+        "model_states": list(change.original.states),
+        "T": change.T.tolist(),
+        "condition": change.condition,
+        "relations": change.relations.tolist(),
+    }
+
+
+# --- initial conditions ------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One ``--ic NAME=VALUE``: a state name or a physical variable."""
+
+    text: str
+    name: str
+    value: float
+    variable: Variable | None
+
+
+def parse_conditions(items: Sequence[str], netlist: Netlist, states: Sequence[str] = ()) -> list[Condition]:
+    """Parse ``--ic`` values; a name is a state when it is one of ``states`` (case-insensitive).
+
+    Raises
+    ------
+    UsageError
+        For malformed items, unknown names and values that are not numbers.
+    """
+    known = {s.lower(): s for s in states}
+    out = []
+    for item in items:
+        name, sep, text = item.partition("=")
+        value = parse_number(text.strip()) if sep else None
+        if value is None or not name.strip():
+            raise UsageError(
+                f"--ic {item!r}: expected NAME=VALUE, NAME a state or a variable such as angle(r1)"
+            )
+        key = name.strip()
+        if key.lower() in known:
+            out.append(Condition(item, known[key.lower()], value, None))
+            continue
+        try:
+            variable = parse_variable(key, netlist)
+        except UsageError as exc:
+            hint = f"; states: {', '.join(states)}" if states else ""
+            raise UsageError(f"--ic {item!r}: {str(exc).split(': ', 1)[-1]}{hint}") from None
+        out.append(Condition(item, variable.name, value, variable))
+    return out
+
+
+def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> NDArray[np.float64] | None:
+    """Solve the conditions for the initial state.
+
+    A state that no condition involves is zero. The conditions (with the
+    conserved relations that share a state with them) must fix the states
+    they involve exactly: fewer independent conditions than those states is
+    refused as under-determined, a condition that follows from the others as
+    over-determined.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+        Compiled with every condition's variable among its outputs.
+    conditions : sequence of Condition
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The initial state; None without conditions.
+
+    Raises
+    ------
+    UsageError
+    """
+    if not conditions:
+        return None
+    n = model.nstates
+    index = {s: k for k, s in enumerate(model.states)}
+    rows, values, labels = [], [], []
+    for cond in conditions:
+        if cond.variable is None:
+            row = np.zeros(n)
+            row[index[cond.name]] = 1.0
+        else:
+            row = variable_row(model, cond.variable, "--ic")
+        rows.append(row)
+        values.append(cond.value)
+        labels.append(cond.text)
+    R = np.array(rows)
+    for k, _ in _dependent(R):
+        others = ", ".join(labels[:k])
+        raise UsageError(
+            f"--ic {labels[k]}: over-determined: the other conditions ({others}) already fix it"
+            if others
+            else f"--ic {labels[k]}: does not involve any state"
+        )
+    touched = _touched(R)
+    relations = conserved_relations(model)
+    used = np.zeros(relations.shape[0], dtype=bool)
+    grew = True
+    while grew:
+        grew = False
+        for j, r in enumerate(relations):
+            if not used[j] and np.any(_touched(r[None, :]) & touched):
+                used[j] = True
+                touched |= _touched(r[None, :])
+                grew = True
+    system = np.vstack([R, relations[used]])
+    rhs = np.concatenate([values, np.zeros(int(used.sum()))])
+    cols = np.flatnonzero(touched)
+    sub = system[:, cols]
+    rank = np.linalg.matrix_rank(sub / np.linalg.norm(sub, axis=1)[:, None], tol=RANK_TOL)
+    if rank < cols.size:
+        free = _null_space(sub)
+        states = [model.states[c] for c in cols]
+        what = "; ".join(_combination(free[:, j], states) for j in range(free.shape[1]))
+        raise UsageError(
+            f"--ic: under-determined: the conditions involve {', '.join(states)} but fix only {rank} "
+            f"combination(s) of them; add {cols.size - rank} condition(s) on {what}"
+        )
+    solution, *_ = np.linalg.lstsq(sub, rhs, rcond=None)
+    if np.linalg.norm(sub @ solution - rhs) > RANK_TOL**0.5 * max(np.linalg.norm(rhs), 1e-300):
+        raise UsageError(
+            "--ic: over-determined: the conditions contradict a relation the model's states keep "
+            "(a position and the spring force that measures it)"
+        )
+    x0 = np.zeros(n)
+    x0[cols] = solution
+    return x0
+
+
+def _touched(rows: NDArray[np.float64]) -> NDArray[np.bool_]:
+    scale = np.abs(rows).max(axis=1, keepdims=True)
+    scale[scale == 0] = 1.0
+    return np.any(np.abs(rows) > ROW_TOL * scale, axis=0)
+
+
+# --- one call for the command line and the API --------------------------------------
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A model compiled for a run with physical coordinates and initial conditions.
+
+    Attributes
+    ----------
+    full : StateSpaceModel
+        In the compiler's states, with every output any part of the run needs
+        (the shown ones first).
+    shown : tuple of str
+        The outputs to report (``--output``; without it, the coordinates
+        when given, else every node voltage/velocity).
+    change : CoordinateChange or None
+        With ``--coordinates``: the model in those variables (its outputs
+        the shown ones).
+    x0 : numpy.ndarray or None
+        Initial state over ``full.states`` from ``--ic``.
+    """
+
+    full: StateSpaceModel
+    shown: tuple[str, ...]
+    change: CoordinateChange | None
+    x0: NDArray[np.float64] | None
+
+    @property
+    def model(self) -> StateSpaceModel:
+        """The model to present: in the coordinates when given, else the compiled one (shown outputs)."""
+        return self.change.model if self.change is not None else select_outputs(self.full, self.shown)
+
+
+def prepare(
+    netlist: Netlist,
+    outputs: Sequence[str] | None = None,
+    coordinates: Sequence[str] | str | None = None,
+    ics: Sequence[str] = (),
+    extra: Sequence[str] = (),
+) -> Prepared:
+    """Compile ``netlist`` for ``--coordinates`` and ``--ic`` (and extra outputs a view needs).
+
+    Parameters
+    ----------
+    netlist : Netlist
+    outputs : sequence of str, optional
+        ``--output`` values.
+    coordinates : str or sequence of str, optional
+        ``x(b1),x(b2),v(b1),v(b2)`` or a list of such names.
+    ics : sequence of str
+        ``--ic NAME=VALUE`` items: state names or physical variables.
+    extra : sequence of str
+        More variables to compute as (hidden) outputs, e.g. rod angles.
+
+    Raises
+    ------
+    UsageError
+    """
+    if isinstance(coordinates, str):
+        coordinates = split_list(coordinates)
+    coords = [parse_variable(c, netlist) for c in coordinates or ()]
+    if coordinates is not None and not coords:
+        raise UsageError("--coordinates: no variable given (e.g. x(b1),x(b2),v(b1),v(b2))")
+    # State names are only known after compiling: compile once with every name that
+    # reads as a variable, then sort the conditions out.
+    probing = []
+    for item in ics:
+        name = item.partition("=")[0].strip()
+        with contextlib.suppress(UsageError):
+            probing.append(parse_variable(name, netlist))
+    shown_given = list(outputs) if outputs else None
+    hidden = [parse_variable(e, netlist) for e in extra]
+    variables = [*coords, *probing, *hidden]
+    full, shown = compile_with(netlist, shown_given, variables)
+    if coords and not shown_given:
+        shown = tuple(v.name for v in coords)
+    conditions = parse_conditions(ics, netlist, full.states)
+    x0 = initial_state(full, conditions)
+    change = change_coordinates(full, coords, shown) if coords else None
+    return Prepared(full, shown, change, x0)
