@@ -437,6 +437,22 @@ def validate(
 @click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
 @path_option("--csv", "Write the outputs as CSV.", "csv_path")
 @path_option("--plot", "Write a PNG plot.")
+@path_option("--animate", "Animate a mechanical netlist into a .gif (or .mp4 with ffmpeg).")
+@click.option("--fps", type=float, default=25.0, show_default=True, help="--animate: frames per second.")
+@click.option(
+    "--speed",
+    type=float,
+    default=1.0,
+    show_default=True,
+    help="--animate: simulated seconds per second shown.",
+)
+@click.option("--frame-size", default="640x360", show_default=True, metavar="WxH", help="--animate: pixels.")
+@click.option(
+    "--geometry",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="--animate: spacing=M (rest distance between nodes) or rod_scale=F (drawn/true rod length).",
+)
 @format_option
 @out_option
 def simulate(
@@ -453,6 +469,11 @@ def simulate(
     force: bool,
     csv_path: str | None,
     plot: str | None,
+    animate: str | None,
+    fps: float,
+    speed: float,
+    frame_size: str,
+    geometry: tuple[str, ...],
     fmt: str,
     out: str | None,
 ) -> None:
@@ -476,7 +497,13 @@ def simulate(
 
         parsed = parse_file(netlist, parse_param_overrides(params))
         angles = rod_angles(parsed)
-        parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(angles))
+        extra = list(angles)
+        if animate:
+            from .animate import animation_options, position_variables
+
+            view = animation_options(animate, fps, speed, frame_size, geometry)
+            extra += position_variables(parsed)
+        parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra))
         full = prepared.full
         for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
             if value is not None and not value > 0:
@@ -505,6 +532,12 @@ def simulate(
             from .plots import simulation_plot
 
             simulation_plot(result, model.outputs, parsed.title, plot)
+        if animate:
+            from .animate import Animation
+
+            movie = Animation(parsed, run.time, run.outputs, full.outputs, signals(run.time), view)
+            frames = movie.save(animate)
+            click.echo(f"netlistdyn: {animate}: {frames} frames at {fps:g} fps", err=True)
         if fmt == "json":
             doc = simulation_dict(result, model, horizon)
             doc["warnings"] = warnings
