@@ -44,7 +44,7 @@ WHEEL_COLOUR = "#6b8e23"
 TRANSLATIONAL = {"MASS", "FORCE", "ROD"}
 ROTATIONAL = {"INERTIA", "TORQUE", "GEAR", "MOTOR"}
 #: Most frames one animation may have.
-MAX_FRAMES = 20_000
+MAX_FRAMES = 5_000
 _UNITS = {"FORCE": "N", "TORQUE": "N·m", "VELOCITY": "m/s"}
 
 
@@ -631,14 +631,18 @@ class Animation:
         if suffix == ".gif":
             from PIL import Image
 
-            images = [Image.fromarray(self.render(k)) for k in range(len(self.samples))]
-            palette = [im.convert("P", palette=Image.Palette.ADAPTIVE, colors=64) for im in images]
+            def frame(k: int) -> Any:
+                rgb = Image.fromarray(self.render(k))
+                return rgb.convert("P", palette=Image.Palette.ADAPTIVE, colors=64)
+
+            # One frame in memory at a time (Pillow consumes the generator while encoding).
+            rest = (frame(k) for k in range(1, len(self.samples)))
             buffer = io.BytesIO()
-            palette[0].save(
+            frame(0).save(
                 buffer,
                 format="GIF",
                 save_all=True,
-                append_images=palette[1:],
+                append_images=rest,
                 duration=max(round(1000 / self.options.fps), 20),
                 loop=0,
                 disposal=1,

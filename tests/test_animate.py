@@ -181,3 +181,35 @@ def test_mp4_without_ffmpeg_says_so(tmp_path: Path) -> None:
     )
     assert result.exit_code == 2
     assert "needs ffmpeg" in result.output
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "two_blocks.cir",
+        "blocks_pendulum.cir",
+        "double_pendulum.cir",
+        "dipc.cir",
+        "two_pendula_cart.cir",
+        "servo_shaft.cir",
+    ],
+)
+def test_every_mechanical_netlist_is_drawn_inside_the_frame(name) -> None:
+    """At the start and at 0.3 s every bob is drawn whole, inside the picture."""
+    parsed = parse_file(NETLISTS / name)
+    prepared = prepare(parsed, None, None, (), position_variables(parsed))
+    times = np.linspace(0.0, 0.3, 31)
+    signals = input_signals(parsed, 0.01, 0.3)
+    run = integrators.run(prepared.full, signals, times)
+    movie = Animation(
+        parsed, run.time, run.outputs, prepared.full.outputs, signals(run.time), Options(10, 1, (320, 200))
+    )
+    rods = len(movie.scene.rods)
+    for k in (0, len(movie.frames()) - 1):
+        frame = movie.render(k)
+        mask = np.all(frame == _colour(BOB_COLOUR), axis=2)
+        _, found = ndimage.label(mask)
+        assert found == rods
+        if rods:
+            rows, cols = np.nonzero(mask)
+            assert rows.min() > 0 and cols.min() > 0 and rows.max() < 199 and cols.max() < 319

@@ -129,6 +129,19 @@ def test_two_pendula_cart_in_the_notes_coordinates() -> None:
     assert_entries(change.model.B, B)
 
 
+@pytest.mark.parametrize("params", [{}, {"inv": 1}, {"m1": 2.0, "m2": 0.3, "l1": 0.7, "l2": 1.6}])
+def test_double_pendulum_in_angles(params) -> None:
+    """The correct linearisation (the notes' own Jacobian keeps only the θ1 column, see shared/README)."""
+    p = {"m1": 1.0, "m2": 1.0, "l1": 1.0, "l2": 1.0, "g": 10.0, "inv": 0, **params}
+    m1, m2, l1, l2, g = p["m1"], p["m2"], p["l1"], p["l2"], p["g"]
+    sign = -1 if p["inv"] else 1
+    M = np.array([[(m1 + m2) * l1**2, m2 * l1 * l2], [m2 * l1 * l2, m2 * l2**2]])
+    K = sign * np.diag([(m1 + m2) * g * l1, m2 * g * l2])
+    A, _ = second_order(M, K, np.zeros((2, 2)), np.zeros((2, 1)))
+    change = in_coordinates("double_pendulum.cir", "angle(r1),angle(r2),omega(r1),omega(r2)", params)
+    assert_entries(change.model.A, A)
+
+
 @pytest.mark.parametrize("K", [500.0, 50.0])
 def test_servo_in_the_notes_coordinates(K) -> None:
     """Seed 003: (Δ, θ2, Ω, ω2, i) with Δ = θ1 − θ2 the shaft's twist, Ω = Δ'."""
