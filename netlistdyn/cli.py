@@ -378,7 +378,7 @@ def validate(
         from .probes import default_probes, parse_probe
         from .report import to_json, validation_dict, validation_text
         from .simulate import choose_horizon
-        from .validate import compare, compare_poles, spice_settings_for
+        from .validate import compare, compare_poles, spice_settings_for, with_original_check
 
         overrides = parse_param_overrides(params)
         parsed = parse_file(netlist, overrides)
@@ -392,6 +392,7 @@ def validate(
         horizon = choose_horizon(parsed, eig, tstop, tstep)
         settings = spice_settings_for(horizon, eig)
         report = compare(parsed, model, probes, horizon, settings, rtol, timeout)
+        report = with_original_check(report, netlist, parsed, model, probes, eig, overrides, timeout)
         if pz:
             from dataclasses import replace
 

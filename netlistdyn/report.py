@@ -225,6 +225,15 @@ def validation_dict(report: Any, title: str) -> dict[str, Any]:
         ],
         "notes": list(report.notes),
     }
+    original = getattr(report, "original", None)
+    if original is not None:
+        doc["original_file"] = {
+            "ran": original.ran,
+            "passed": original.passed,
+            "worst_rel_difference": original.worst,
+            "compared": original.compared,
+            "message": original.message,
+        }
     if report.poles is not None:
         poles = report.poles
         doc["poles"] = {
@@ -286,7 +295,11 @@ def validation_text(report: Any, title: str) -> str:
         out.append("FAIL: ngspice did not produce a reference")
     else:
         bad = [c.name for c in report.comparisons if c.max_rel_error > report.rtol]
-        out.append(f"FAIL: {', '.join(bad)} differ by more than {report.rtol:g} of their peak")
+        if bad:
+            out.append(f"FAIL: {', '.join(bad)} differ by more than {report.rtol:g} of their peak")
+        original = getattr(report, "original", None)
+        if original is not None and not original.passed:
+            out.append("FAIL: the model disagrees with ngspice's reading of the original file (see the note)")
     return "\n".join(out) + "\n"
 
 

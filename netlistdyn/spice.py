@@ -455,3 +455,171 @@ def run_polezero(netlist: Netlist, output: tuple[str, str], timeout: float = 60.
     if result is None:
         return PoleZeroRun(np.zeros(0, dtype=complex), False, "ngspice .pz did not finish")
     return PoleZeroRun(result["poles"], result["ok"], result["message"])
+
+
+# ---------------------------------------------------------------------------
+# The user's original file, as ngspice itself reads it (validate's check for
+# misreadings). Everything above feeds ngspice the netlist as netlistdyn
+# understood it, which cannot reveal a parse-level misunderstanding; this runs
+# the ngspice binary on the file the user wrote.
+
+
+@dataclass(frozen=True)
+class OriginalRun:
+    """ngspice's ``op`` and ``ac`` on the user's original netlist file.
+
+    Attributes
+    ----------
+    ok : bool
+        False when ngspice could not read or run the file.
+    message : str
+        ngspice's first complaint when it failed.
+    op : dict
+        Vector name (``v(out)``, ``i(v1)``, lower case) → operating-point value;
+        empty when ngspice's ``op`` failed (a singular DC matrix).
+    ac : dict
+        Frequency (Hz) → {vector name → complex phasor}.
+    """
+
+    ok: bool
+    message: str = ""
+    op: dict[str, float] = field(default_factory=dict)
+    ac: dict[float, dict[str, complex]] = field(default_factory=dict)
+
+
+def ngspice_source_name(name: str) -> str:
+    """ngspice's instance name of a netlistdyn element name (``X1.Vs`` → ``v.x1.vs``)."""
+    low = name.lower()
+    if "." not in low:
+        return low
+    return f"{low.rsplit('.', 1)[1][0]}.{low}"
+
+
+def _without_control_blocks(text: str) -> str:
+    kept, inside = [], False
+    for line in text.splitlines():
+        word = line.strip().lower()
+        if word.startswith(".control"):
+            inside = True
+        elif inside and word.startswith(".endc"):
+            inside = False
+        elif not inside:
+            kept.append(line)
+    return "\n".join(kept) + "\n"
+
+
+def _read_ascii_raw(path: str) -> list[dict[str, NDArray[np.complex128]]]:
+    """The plots of an ngspice ASCII rawfile, each {vector name → values}."""
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        lines = [ln for ln in handle.read().splitlines() if ln.strip()]
+    plots, i = [], 0
+    while i < len(lines):
+        if not lines[i].startswith("Title:"):
+            i += 1
+            continue
+        nvars = npoints = 0
+        while not lines[i].startswith("Variables:"):
+            key, _, val = lines[i].partition(":")
+            if key == "No. Variables":
+                nvars = int(val)
+            elif key == "No. Points":
+                npoints = int(val)
+            i += 1
+        names = [lines[i + 1 + k].split()[1].lower() for k in range(nvars)]
+        i += nvars + 2
+        data = np.zeros((npoints, nvars), dtype=complex)
+        for p in range(npoints):
+            for v in range(nvars):
+                re_part, _, im_part = lines[i].split()[-1].partition(",")
+                data[p, v] = complex(float(re_part), float(im_part or 0.0))
+                i += 1
+        plots.append({n: data[:, k] for k, n in enumerate(names)})
+    return plots
+
+
+def run_original(
+    path: str,
+    sources: Sequence[tuple[str, float, float]],
+    frequencies: Sequence[float],
+    params: dict[str, float] | None = None,
+    timeout: float = 60.0,
+) -> OriginalRun:
+    """Run the ngspice binary on the user's file: ``op`` and ``ac`` with chosen source values.
+
+    Parameters
+    ----------
+    path : str
+        The netlist file exactly as the user wrote it (``.control`` blocks are
+        removed from a temporary copy so that its own analyses do not run).
+    sources : sequence of (str, float, float)
+        ngspice instance name of every independent source, its DC value (V or
+        A) and its AC magnitude, set with ``alter`` before the analyses.
+    frequencies : sequence of float
+        ``ac`` frequencies (Hz).
+    params : dict, optional
+        ``.param`` overrides, applied with ``alterparam`` and ``reset``.
+    timeout : float
+        Seconds allowed to ngspice.
+
+    Returns
+    -------
+    OriginalRun
+    """
+    import re
+    import shutil
+    import subprocess
+    import tempfile
+
+    binary = shutil.which("ngspice")
+    if binary is None:
+        return OriginalRun(False, "the ngspice program is not on PATH")
+    source = os.path.abspath(path)
+    with tempfile.TemporaryDirectory(prefix="netlistdyn-orig") as tmp:
+        with open(source, "rb") as handle:
+            raw = handle.read().decode("latin-1")
+        deck = source
+        if re.search(r"^\s*\.control", raw, re.IGNORECASE | re.MULTILINE):
+            deck = os.path.join(tmp, os.path.basename(source))
+            with open(deck, "wb") as handle:
+                handle.write(_without_control_blocks(raw).encode("latin-1"))
+        cmds = [f"alterparam {k}={v:.17g}" for k, v in (params or {}).items()]
+        if params:
+            cmds.append("reset")
+        for name, dc, ac in sources:
+            cmds += [f"alter @{name}[dc]={dc:.17g}", f"alter @{name}[acmag]={ac:.17g}"]
+        cmds += ["set filetype=ascii", "op", f"write {tmp}/op.raw"]
+        for k, f in enumerate(frequencies):
+            cmds += [f"ac lin 1 {f:.17g} {f:.17g}", f"write {tmp}/ac{k}.raw"]
+        script = "\n".join([*cmds, "quit", ""])
+        try:
+            proc = subprocess.run(
+                [binary, "-n", "-p", deck],
+                input=script.encode(),
+                capture_output=True,
+                timeout=timeout,
+                cwd=os.path.dirname(source),
+            )
+        except subprocess.TimeoutExpired:
+            return OriginalRun(False, f"ngspice did not finish within {timeout:g} s")
+        text = (proc.stdout + proc.stderr).decode("utf-8", "replace")
+        complaints = [
+            ln.strip()
+            for ln in text.splitlines()
+            if ln.strip().lower().startswith(("error", "fatal")) and "graphics" not in ln
+        ]
+        op: dict[str, float] = {}
+        if os.path.exists(f"{tmp}/op.raw"):
+            plots = _read_ascii_raw(f"{tmp}/op.raw")
+            if plots:
+                op = {k: float(v[0].real) for k, v in plots[0].items()}
+        ac: dict[float, dict[str, complex]] = {}
+        for k, f in enumerate(frequencies):
+            if os.path.exists(f"{tmp}/ac{k}.raw"):
+                plots = _read_ascii_raw(f"{tmp}/ac{k}.raw")
+                if plots:
+                    ac[f] = {n: complex(v[0]) for n, v in plots[0].items() if n != "frequency"}
+    if "Numparam expansion errors" in text:
+        return OriginalRun(False, "ngspice reports numparam expansion errors")
+    if not ac:
+        return OriginalRun(False, complaints[0] if complaints else "ngspice's ac produced nothing")
+    return OriginalRun(True, "", op, ac)

@@ -22,7 +22,7 @@ from .model import StateSpaceModel
 from .netlist import Netlist
 from .probes import Probe
 from .simulate import Horizon, input_signals, simulate_foh
-from .spice import SpiceRun, SpiceSettings, run_polezero, run_transient
+from .spice import SpiceRun, SpiceSettings, ngspice_source_name, run_original, run_polezero, run_transient
 
 #: Default pass threshold: max error relative to each waveform's peak (ngspice's default reltol).
 DEFAULT_RTOL = 1e-3
@@ -39,6 +39,11 @@ STEPS_PER_HORIZON = 2000
 MAX_STEPS = 2_000_000
 #: Largest model for which ngspice's .pz poles are compared.
 PZ_MAX_STATES = 6
+#: Agreement demanded between the model's transfer values and ngspice's op/ac on
+#: the original file: both solve the same linear equations in double precision
+#: (ngspice prints 16 digits), so 1e-6 leaves room for rounding only, while any
+#: misread value or connection changes the answer by far more.
+ORIGINAL_RTOL = 1e-6
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,6 +94,35 @@ class PoleComparison:
 
 
 @dataclass(frozen=True)
+class OriginalCheck:
+    """The model against ngspice's ``op``/``ac`` on the user's original file.
+
+    Attributes
+    ----------
+    ran : bool
+        False when the check could not be made (``message`` says why); it
+        then neither passes nor fails the validation.
+    worst : float
+        Largest difference over every compared output, relative to the largest
+        output of its kind (voltages, currents) at the same frequency.
+    compared : int
+        Number of (output, frequency) values compared.
+    message : str
+        One line for the report.
+    """
+
+    ran: bool
+    worst: float = 0.0
+    compared: int = 0
+    message: str = ""
+
+    @property
+    def passed(self) -> bool:
+        """False only when the check ran and found a difference above :data:`ORIGINAL_RTOL`."""
+        return not self.ran or self.worst <= ORIGINAL_RTOL
+
+
+@dataclass(frozen=True)
 class ValidationReport:
     """Everything ``validate`` found."""
 
@@ -103,11 +137,14 @@ class ValidationReport:
     ours: np.ndarray
     notes: tuple[str, ...] = ()
     poles: PoleComparison | None = None
+    original: OriginalCheck | None = None
 
     @property
     def passed(self) -> bool:
-        """True when ngspice ran and every output is within ``rtol`` of its peak."""
-        return self.spice.ok and all(c.max_rel_error <= self.rtol for c in self.comparisons)
+        """True when ngspice ran, every output is within ``rtol`` of its peak, and
+        ngspice's reading of the original file does not contradict the model."""
+        ok = self.spice.ok and all(c.max_rel_error <= self.rtol for c in self.comparisons)
+        return ok and (self.original is None or self.original.passed)
 
 
 def _time_scales(eig: EigenAnalysis | None) -> tuple[float, list[tuple[float, float]]]:
@@ -305,3 +342,127 @@ def compare_poles(netlist: Netlist, eig: EigenAnalysis, probes: Sequence[Probe])
     if unmatched:
         note = "not among ngspice's poles: " + ", ".join(f"{lam:.6g}" for lam in unmatched)
     return PoleComparison(poles, values, worst, note)
+
+
+def _original_frequencies(eig: EigenAnalysis | None) -> list[float]:
+    """Three ac frequencies (Hz) around the model's own time scales, off its poles."""
+    values = np.array([m.value for m in eig.modes], dtype=complex) if eig is not None else np.zeros(0)
+    mags = np.abs(values[np.abs(values) > 0])
+    omega = float(np.exp(np.mean(np.log(mags)))) if mags.size else 2 * math.pi * 1e3
+    freqs = []
+    for factor in (0.31, 1.07, 3.3):
+        w = factor * omega
+        while values.size and np.abs(values - 1j * w).min() < 1e-3 * w:
+            w *= 1.13
+        freqs.append(w / (2 * math.pi))
+    return freqs
+
+
+def check_original(
+    path: str,
+    netlist: Netlist,
+    model: StateSpaceModel,
+    probes: Sequence[Probe],
+    eig: EigenAnalysis | None,
+    params: dict[str, float] | None = None,
+    timeout: float = 60.0,
+) -> OriginalCheck:
+    """Compare the model with ngspice's own reading of the user's original file.
+
+    ngspice runs ``op`` and ``ac`` (three frequencies around the model's time
+    scales) on the file as written, every independent source given its own DC
+    value and AC magnitude with ``alter``; the model's transfer matrix
+    C(sI − A)⁻¹B + D + sD1 at s = 0 and s = j2πf, applied to the same source
+    values, must give the same voltages and currents to :data:`ORIGINAL_RTOL`.
+    A netlist misread by netlistdyn's parser (a value, a connection, a global
+    node) fails here even though the transient comparison, which feeds ngspice
+    netlistdyn's own understanding, passes.
+
+    Parameters
+    ----------
+    path : str
+        The netlist file as the user wrote it.
+    netlist : Netlist
+        netlistdyn's reading of it (its sources name the model's inputs).
+    model : StateSpaceModel
+        Compiled with ``probes`` as outputs.
+    probes : sequence of Probe
+    eig : EigenAnalysis or None
+        The model's eigenvalues (to place the frequencies).
+    params : dict, optional
+        ``--param`` overrides (passed to ngspice with ``alterparam``).
+    timeout : float
+        Seconds allowed to ngspice.
+    """
+    if any(e.keyword for e in netlist.elements):
+        return OriginalCheck(False, message="original file not run by ngspice: it has mechanical elements")
+    inputs = list(model.inputs)
+    if not inputs:
+        return OriginalCheck(False, message="original file not run by ngspice: no independent source")
+    dc = np.array([1.0 + 0.37 * k for k in range(len(inputs))])
+    ac = np.array([0.5 + 0.29 * k for k in range(len(inputs))])
+    names = [ngspice_source_name(n) for n in inputs]
+    freqs = _original_frequencies(eig)
+    run = run_original(path, list(zip(names, dc, ac, strict=True)), freqs, params, timeout)
+    if not run.ok:
+        return OriginalCheck(False, message=f"ngspice could not run the original file: {run.message}")
+
+    def vector(probe: Probe, values: dict[str, Any]) -> complex | None:
+        if probe.kind == "v":
+            total = 0j
+            for node, sign in zip(probe.nodes, (1, -1), strict=True):
+                if node != "0":
+                    if f"v({node})" not in values:
+                        return None
+                    total += sign * values[f"v({node})"]
+            return total
+        if probe.kind == "i":
+            return values.get(f"i({ngspice_source_name(probe.element)})")
+        return None
+
+    worst, compared = 0.0, 0
+    cases: list[tuple[complex, np.ndarray, dict[str, Any]]] = [
+        (2j * math.pi * f, ac, run.ac[f]) for f in run.ac
+    ]
+    if run.op:
+        cases.append((0j, dc, run.op))
+    for s, u, values in cases:
+        try:
+            ours = model.transfer_function(s) @ u
+        except np.linalg.LinAlgError:
+            continue  # no DC solution of the model (ngspice's op then has none either)
+        pairs = {"v": [], "i": []}
+        for j, probe in enumerate(probes):
+            theirs = vector(probe, values)
+            if theirs is not None and probe.kind in pairs:
+                pairs[probe.kind].append((complex(ours[j]), complex(theirs)))
+        for group in pairs.values():
+            scale = max((abs(b) for _, b in group), default=0.0)
+            for a, b in group:
+                compared += 1
+                if scale > 0:
+                    worst = max(worst, abs(a - b) / scale)
+    if compared == 0:
+        return OriginalCheck(False, message="original file: ngspice printed none of the outputs")
+    verdict = "agrees" if worst <= ORIGINAL_RTOL else "DISAGREES (netlistdyn misreads the file?)"
+    where = ", ".join(f"{f:.4g}" for f in run.ac)
+    message = (
+        f"ngspice on the original file (op and ac at {where} Hz): {compared} values, "
+        f"worst relative difference {worst:.2g}: {verdict}"
+    )
+    return OriginalCheck(True, worst, compared, message)
+
+
+def with_original_check(
+    report: ValidationReport,
+    path: str,
+    netlist: Netlist,
+    model: StateSpaceModel,
+    probes: Sequence[Probe],
+    eig: EigenAnalysis | None,
+    params: dict[str, float] | None = None,
+    timeout: float = 60.0,
+) -> ValidationReport:
+    """``report`` with :func:`check_original`'s verdict attached (and its line in the notes)."""
+    original = check_original(path, netlist, model, probes, eig, params, timeout)
+    return replace(report, original=original, notes=(*report.notes, original.message))
