@@ -647,3 +647,14 @@ def classify(path: Path, drop: tuple[str, ...] = ()) -> Outcome:
         if "\n" in message.strip():
             return Outcome("wrong", f"refusal is not one line: {message!r}")
         return Outcome("refused", message.strip())
+
+
+def classify_text(text: str | bytes, directory: Path, name: str = "probe.cir") -> Outcome:
+    """:func:`classify` of a netlist given as text (written to ``directory/name``).
+
+    For one-construct probes in tests: ``classify_text(netlist, tmp_path).status``
+    is ``agree`` only when netlistdyn reads the construct as ngspice does.
+    """
+    path = Path(directory) / name
+    path.write_bytes(text.encode("utf-8") if isinstance(text, str) else text)
+    return classify(path)
