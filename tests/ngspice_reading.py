@@ -98,7 +98,7 @@ class RefElement:
     name: str  # as ngspice prints it, lower case (``r.x1.r1``)
     letter: str
     nodes: tuple[str, ...]
-    value: float = 0.0
+    value: float = 0.0  # Ω, F, H, gain, k; a V source's port resistance
     control: tuple[str, ...] = ()
 
 
@@ -234,11 +234,12 @@ def parse_reading(listing: list[str]) -> Reading:
             key = {"r": "r", "c": "c", "l": "l"}[letter]
             raw = kw.get(key) or kw.get({"r": "resistance", "c": "capacitance", "l": "inductance"}[letter])
             if raw is None:
-                if not positional:
-                    raise ReferenceUnavailable(f"{name}: no value in ngspice's listing: {text}")
-                raw = positional[0]
-                if len(positional) > 1 or not _NUMBER.match(raw):
-                    raise ReferenceUnavailable(f"{name}: model card or extra fields: {text}")
+                numbers = [p for p in positional if _NUMBER.match(p)]
+                # ``R1 a b rmod 1k``: a model name beside the value (the op/ac check
+                # below catches a model whose parameters change the value).
+                if len(numbers) != 1 or len(positional) > 2:
+                    raise ReferenceUnavailable(f"{name}: no single value in ngspice's listing: {text}")
+                raw = numbers[0]
             if letter == "r" and "ac" in kw:
                 raise ReferenceUnavailable(f"{name}: separate AC resistance: {text}")
             value = spice_value(raw)
@@ -246,9 +247,14 @@ def parse_reading(listing: list[str]) -> Reading:
             value = {"r": value / mult, "c": value * mult, "l": value / mult}[letter]
             elements.append(RefElement(name, letter, tuple(fields[1:3]), value))
         elif letter in "vi":
+            series = 0.0
             if "portnum" in low:
-                raise ReferenceUnavailable(f"{name}: S-parameter port source: {text}")
-            elements.append(RefElement(name, letter, tuple(fields[1:3])))
+                if letter == "i":
+                    raise ReferenceUnavailable(f"{name}: S-parameter port on a current source: {text}")
+                # ngspice's S-parameter port: a voltage source behind its z0 (default 50 Ω).
+                tok = _tokens(low.replace("=", " "))
+                series = spice_value(tok[tok.index("z0") + 1]) if "z0" in tok else 50.0
+            elements.append(RefElement(name, letter, tuple(fields[1:3]), series))
         elif letter in "eg":
             tok = _tokens(low)
             if len(tok) < 6:
@@ -321,6 +327,7 @@ def build_pencil(reading: Reading) -> Pencil:
             c[bindex[e.name], bindex[e.name]] -= e.value
         elif e.letter == "v":
             branch(bindex[e.name], *e.nodes)
+            g[bindex[e.name], bindex[e.name]] -= e.value  # port resistance (0 for a plain source)
             if e.name in sources:
                 bu[bindex[e.name], sources.index(e.name)] = 1.0
         elif e.letter == "i":
