@@ -1,0 +1,131 @@
+"""One small netlist per construct of issue #10, judged against ngspice's own reading.
+
+Each probe is a netlist using one construct. ``tests/ngspice_reading.classify``
+builds the reference from ngspice's expanded listing (checked against
+ngspice's op/ac) and compares netlistdyn's eigenvalues and transfer values with
+it. The expected outcome is today's, recorded so that every change shows:
+
+* ``agree`` — read as ngspice reads it;
+* ``refused`` — refused with a one-line ``file:line: message`` (fails, saying
+  "move it to agree", once the construct is read and agrees);
+* ``wrong`` — a silent misreading (strict xfail: once fixed it fails until
+  moved to ``agree``);
+* ``ngspice-refuses`` — ngspice 39 itself refuses the file, so netlistdyn must
+  refuse it too; ``accepts-invalid`` marks one it still accepts (strict xfail).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+import netlistdyn
+from netlistdyn.errors import NetlistError
+
+from .ngspice_reading import ReferenceUnavailable, build_reference, classify_text, ngspice_available
+
+pytestmark = pytest.mark.skipif(not ngspice_available(), reason="ngspice is not installed")
+
+RC = "V1 in 0 1\nR1 in a 1k\nC1 a 0 1u\n"
+ONE_LINE = re.compile(r"^\S.*:\d+: \S.*$")
+
+# name: (netlist bytes, expected outcome today)
+PROBES: dict[str, tuple[bytes, str]] = {
+    "mu_utf8_b5": ("mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\u00b5\n".encode(), "wrong"),
+    "mu_utf8_3bc": ("mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\u03bc\n".encode(), "agree"),
+    "mu_latin1": (b"mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\xb5\n", "refused"),
+    "global": (
+        b"g\n.global vcc\nVs vcc 0 2\n.subckt st in out\nR1 vcc out 1k\nC1 out 0 1u\nR2 in out 2k\n.ends\n"
+        b"V1 a 0 1\nX1 a b st\nR3 b 0 4.7k\n",
+        "wrong",
+    ),
+    "unclosed_brace": (b"u\nV1 in 0 1\nR1 in a {1000\nC1 a 0 1u\n", "accepts-invalid"),
+    "extra_value": (b"x\nV1 in 0 1 2\nR1 in a 1k\nC1 a 0 1u\n", "accepts-invalid"),
+    "extra_dc_value": (b"x\nV1 in 0 DC 1 5\nR1 in a 1k\nC1 a 0 1u\n", "accepts-invalid"),
+    "formfeed_in_comment": (b"f\n* note \x0c R9 in 0 1\n" + RC.encode(), "agree"),
+    "u2028_in_comment": ("f\n* note \u2028R9 in 0 1\n".encode() + RC.encode(), "agree"),
+    "ltspice_rser": (b"r\nV1 in 0 1\nR1 in a 10\nL1 a b 1m Rser=0.5\nC1 b 0 1u\n", "ngspice-refuses"),
+    "subckt_params": (
+        b"p\n.subckt rc a b params: r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
+        b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc c={2n}\n",
+        "refused",
+    ),
+    "subckt_hspice_params": (
+        b"p\n.subckt rc a b r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
+        b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc\n",
+        "refused",
+    ),
+    "subckt_nested_params": (
+        b"p\n.subckt inner a b params: r=1k\nR1 a b {r}\n.ends\n.subckt outer a b params: k=2\n"
+        b"X1 a m inner r={k*1k}\nC1 m b 1u\n.ends\nV1 in 0 1\nX1 in 0 outer k=3\n",
+        "refused",
+    ),
+    "source_keywords": (b"k\nV1 in 0 dc=0 ac=1\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
+    "passive_keywords": (b"k\nV1 in 0 1\nR1 in a R=1k\nC1 a 0 C=1u\nL1 a 0 L=1m\n", "refused"),
+    "value_keyword": (b"k\nV1 in 0 1\nR1 in a value={2*500}\nC1 a 0 1u\n", "ngspice-refuses"),
+    "multiplier": (b"m\nV1 in 0 1\nR1 in a 1k m=2\nC1 a 0 1u m=3\nL1 a 0 1m m=2\n", "refused"),
+    "r_noisy": (b"n\nV1 in 0 1\nR1 in a 1k noisy=0\nC1 a 0 1u\n", "refused"),
+    "element_ic": (b"i\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u IC=1\nL1 a 0 1m IC=1m\n", "refused"),
+    "dot_ic": (b"i\n" + RC.encode() + b".ic v(a)=1\n", "agree"),
+    "dot_func": (b"f\n.func half(x) {x/2}\nV1 in 0 1\nR1 in a {half(2k)}\nC1 a 0 1u\n", "refused"),
+    "dot_if": (
+        b"i\n.param sel=1\n.if (sel == 1)\nR1 in a 1k\n.else\nR1 in a 2k\n.endif\nV1 in 0 1\nC1 a 0 1u\n",
+        "refused",
+    ),
+    "rkm_4k7": (b"r\nV1 in 0 1\nR1 in a 4k7\nC1 a 0 1u\n", "refused"),
+    "bare_parameter": (b"b\n.param rr=2k\nV1 in 0 1\nR1 in a rr\nC1 a 0 1u\n", "refused"),
+    "atto_is_not_a_suffix": (b"a\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1a\nR2 a 0 1a\n", "agree"),
+    "case_insensitive_param": (b"c\n.param M=2 m=3\nV1 in 0 1\nR1 in a {M*1k}\nC1 a 0 1u\n", "agree"),
+    "port_source": (b"p\nV1 in 0 dc 0 ac 1 portnum 1 z0 50\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
+    "distof": (b"d\nV1 in 0 dc 0 ac 1 distof1 0.1\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
+    "r_model_card": (b"m\n.model rmod r\nV1 in 0 1\nR1 in a rmod 1k\nC1 a 0 1u\n", "refused"),
+    "c_model_card": (b"m\n.model cmod c\nV1 in 0 1\nR1 in a 1k\nC1 a 0 cmod 1u\n", "refused"),
+    "title_directive": (b"t\n.title my circuit\n" + RC.encode(), "refused"),
+    "gnd_alias": (b"g\nV1 in GND 1\nR1 in a 1k\nC1 a gnd 1u\n", "agree"),
+    "tran_one_argument": (b"t\n" + RC.encode() + b".tran 2u\n", "ngspice-refuses"),
+    "step_param": (
+        b"s\n.param rr=1k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n.step param rr list 1k 2k\n",
+        "ngspice-refuses",
+    ),
+    "backanno": (b"b\n" + RC.encode() + b".backanno\n", "ngspice-refuses"),
+    "pwl_td": (b"p\nV1 in 0 pwl(0 0 1m 1) td=1m r=0\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
+    "ternary": (b"t\n.param a=1\nV1 in 0 1\nR1 in a {a>0 ? 1k : 2k}\nC1 a 0 1u\n", "refused"),
+    "b_source_linear": (b"b\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nB1 b 0 V=2*V(a)+1\nR2 b 0 1k\n", "refused"),
+    "e_value_linear": (b"e\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nE1 b 0 value={2*V(a)}\nR2 b 0 1k\n", "refused"),
+    "diode": (b"d\nV1 in 0 1\nR1 in a 1k\nD1 a 0 dmod\n.model dmod d\n", "refused"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PROBES))
+def test_construct_probe(name: str, tmp_path: Path) -> None:
+    text, expect = PROBES[name]
+    text += b".end\n"
+    if expect in ("ngspice-refuses", "accepts-invalid"):
+        path = tmp_path / "probe.cir"
+        path.write_bytes(text)
+        with pytest.raises(ReferenceUnavailable):
+            build_reference(path)
+        try:
+            netlistdyn.compile(path)
+        except NetlistError as exc:
+            assert ONE_LINE.match(str(exc).strip()), str(exc)
+            if expect == "accepts-invalid":
+                pytest.fail("now refused as ngspice refuses it: mark it 'ngspice-refuses'")
+            return
+        if expect == "accepts-invalid":
+            pytest.xfail("netlistdyn accepts a file ngspice 39 refuses")
+        pytest.fail("netlistdyn accepts a file ngspice 39 refuses")
+    outcome = classify_text(text, tmp_path)
+    assert outcome.status != "no-reference", outcome.detail
+    if expect == "wrong":
+        if outcome.status == "wrong":
+            pytest.xfail(f"known misreading: {outcome.detail}")
+        pytest.fail(f"no longer misread ({outcome.status}: {outcome.detail}): update the expectation")
+    assert outcome.status != "wrong", outcome.detail
+    if expect == "agree":
+        assert outcome.status == "agree", outcome.detail
+    else:
+        assert outcome.status == "refused", f"now agrees with ngspice ({outcome.detail}): move it to 'agree'"
+        assert ONE_LINE.match(outcome.detail), outcome.detail
