@@ -525,7 +525,7 @@ def match_spectra(ours: np.ndarray, ref: np.ndarray) -> float:
     return float((cost[rows, cols] / scale).max())
 
 
-def test_frequencies(eigs: np.ndarray) -> list[complex]:
+def probe_frequencies(eigs: np.ndarray) -> list[complex]:
     """Three complex frequencies (rad/s) at the circuit's own scale, away from its poles."""
     nonzero = np.abs(eigs[np.abs(eigs) > 1e-12 * np.abs(eigs).max(initial=0.0)])
     scale = float(np.exp(np.mean(np.log(nonzero)))) if nonzero.size else 1.0
@@ -616,7 +616,7 @@ def compare_model(path: Path, ref: Reference) -> Outcome:
     order = [inputs.index(k) for k in keys]
     rows = pencil.node_rows(top_nodes)
     worst_tf = 0.0
-    for s in test_frequencies(ref.eigenvalues):
+    for s in probe_frequencies(ref.eigenvalues):
         mine = model.transfer_function(s)[:, order] if outputs else np.zeros((0, len(keys)))
         theirs = rows @ np.linalg.solve(pencil.G + s * pencil.C, pencil.Bu)
         if theirs.size:
