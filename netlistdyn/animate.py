@@ -389,9 +389,17 @@ class Animation:
         return out
 
     def _pivot(self, rod: Rod, at: tuple[float, float]) -> tuple[float, float]:
+        """Where a rod is drawn from: the top (upright) or bottom (hanging) of its block.
+
+        Several rods on one block are spread along its side so that they do not
+        overlap (two pendula on a cart); a single rod starts at the middle.
+        """
         if rod.pivot in self.scene.line:
             half = self.block / 2
-            return (at[0], at[1] + (half if rod.inverted else -half))
+            siblings = [r for r in self.scene.rods if r.pivot == rod.pivot and r.inverted == rod.inverted]
+            j, count = siblings.index(rod), len(siblings)
+            shift = 0.0 if count == 1 else (j / (count - 1) - 0.5) * 0.7 * self.block
+            return (at[0] + shift, at[1] + (half if rod.inverted else -half))
         return at
 
     def view(self) -> tuple[float, float, float, float]:

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from .errors import UsageError
 from .model import StateSpaceModel
-from .netlist import Netlist
+from .netlist import Kind, Netlist
 from .probes import default_probes, parse_probe
 from .values import parse_number
 
@@ -314,7 +314,10 @@ def _clean(matrix: NDArray[np.float64], cond: float) -> NDArray[np.float64]:
 
 
 def change_coordinates(
-    model: StateSpaceModel, variables: Sequence[Variable], keep_outputs: Sequence[str] | None = None
+    model: StateSpaceModel,
+    variables: Sequence[Variable],
+    keep_outputs: Sequence[str] | None = None,
+    candidates: Sequence[Variable] = (),
 ) -> CoordinateChange:
     """Present ``model`` in the listed variables.
 
@@ -327,6 +330,8 @@ def change_coordinates(
         The coordinates, in order.
     keep_outputs : sequence of str, optional
         Outputs of the result (default: all of ``model``'s).
+    candidates : sequence of Variable
+        Variables (among the model's outputs) to suggest when some are missing.
 
     Raises
     ------
@@ -358,9 +363,22 @@ def change_coordinates(
             what = "; ".join(
                 f"one involving {_combination(missing[:, j], model.states)}" for j in range(missing.shape[1])
             )
+            known = np.vstack([rows, relations])
+            rank = np.linalg.matrix_rank(_unit_rows(known), tol=RANK_TOL)
+            helpful = []
+            for cand in candidates:
+                if cand.name in names or cand.output not in model.outputs:
+                    continue
+                try:
+                    row = variable_row(model, cand, "--coordinates")
+                except UsageError:
+                    continue
+                if np.linalg.matrix_rank(_unit_rows(np.vstack([known, row])), tol=RANK_TOL) > rank:
+                    helpful.append(cand.name)
+            hint = f" (for instance {', '.join(helpful[:6])})" if helpful else ""
             raise UsageError(
                 f"--coordinates: {len(variables)} variables for a model of {n - relations.shape[0]} "
-                f"independent states; missing {missing.shape[1]} direction(s): {what}"
+                f"independent states; missing {missing.shape[1]} direction(s): {what}{hint}"
             )
     else:
         relations = np.zeros((0, n))
@@ -382,6 +400,12 @@ def change_coordinates(
         info=replace(model.info, integrators=()),
     )
     return CoordinateChange(new, model, rows, cond, relations)
+
+
+def _unit_rows(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    scale = np.linalg.norm(rows, axis=1)
+    scale[scale == 0] = 1.0
+    return rows / scale[:, None]
 
 
 def _null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -551,6 +575,21 @@ def _touched(rows: NDArray[np.float64]) -> NDArray[np.bool_]:
     return np.any(np.abs(rows) > ROW_TOL * scale, axis=0)
 
 
+def _candidates(netlist: Netlist) -> list[Variable]:
+    """Variables to suggest for missing coordinates: node voltages/velocities, inductor currents
+    (spring forces), rod angles and rates.
+
+    None of them adds a state (``x(node)`` would add an integrator).
+    """
+    out = [parse_variable(p.name, netlist) for p in default_probes(netlist)]
+    for e in netlist.elements:
+        if e.kind is Kind.INDUCTOR:
+            out.append(parse_variable(f"i({e.name})", netlist))
+        if e.rod is not None:
+            out += [parse_variable(f"angle({e.name})", netlist), parse_variable(f"omega({e.name})", netlist)]
+    return out
+
+
 # --- one call for the command line and the API --------------------------------------
 
 
@@ -623,11 +662,12 @@ def prepare(
             probing.append(parse_variable(name, netlist))
     shown_given = list(outputs) if outputs else None
     hidden = [parse_variable(e, netlist) for e in extra]
-    variables = [*coords, *probing, *hidden]
+    candidates = _candidates(netlist) if coords else []
+    variables = [*coords, *probing, *hidden, *candidates]
     full, shown = compile_with(netlist, shown_given, variables)
     if coords and not shown_given:
         shown = tuple(v.name for v in coords)
     conditions = parse_conditions(ics, netlist, full.states)
     x0 = initial_state(full, conditions)
-    change = change_coordinates(full, coords, shown) if coords else None
+    change = change_coordinates(full, coords, shown, candidates) if coords else None
     return Prepared(full, shown, change, x0)

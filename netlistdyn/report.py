@@ -127,7 +127,7 @@ def _unit_of_state(name: str) -> str:
         "p": "momentum",
         "f": "force",
         "x": "displacement",
-        "v": "velocity",
+        "v": "V or m/s",
         "angle": "rad",
         "omega": "rad/s",
     }.get(name.split("(", 1)[0].rsplit(".", 1)[-1], "")  # plant.q(C1) after connect
