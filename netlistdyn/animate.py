@@ -592,6 +592,18 @@ class Animation:
         ]
         if off:
             notes.append("off screen: " + ", ".join(f"x({n}) = {self.x[n][k]:.3g} m" for n in off))
+            x0, x1 = self._limits[:2]
+            for n in off:
+                right = self.rest(n) + self.x[n][k] > x1
+                ax.text(
+                    x1 if right else x0,
+                    0.0,
+                    f"{n} →" if right else f"← {n}",
+                    ha="right" if right else "left",
+                    va="center",
+                    fontsize=10,
+                    color=BLOCK_COLOUR,
+                )
         if notes:
             ax.text(
                 0.01, 0.02, "; ".join(notes), transform=ax.figure.transFigure, fontsize=8, color="#a02020"
