@@ -44,6 +44,9 @@ from .values import parse_number
 ROW_TOL = 1e-11
 #: Relative singular-value threshold for rank decisions on scaled rows.
 RANK_TOL = 1e-9
+#: Largest model whose conserved relations are looked for (a dense SVD), and the largest
+#: model ``--coordinates`` transforms (dense T A T⁻¹).
+RELATIONS_LIMIT = 400
 
 _OMEGA = re.compile(r"^\s*omega\s*\(\s*([^,()\s]+)\s*\)\s*$", re.IGNORECASE)
 
@@ -164,24 +167,23 @@ def variable_row(model: StateSpaceModel, variable: Variable, what: str) -> NDArr
         When the variable depends on an input directly, not on the state alone.
     """
     k = model.outputs.index(variable.output)
-    c = np.array(model.C[k], dtype=float)
-    direct = [u for j, u in enumerate(model.inputs) if model.D[k, j] != 0 or model.D1[k, j] != 0]
+    c = np.asarray(model.C_sparse[[k]].toarray()[0], dtype=float)
+    d = model.D_sparse[[k]].toarray()[0]
+    d1 = model.D1_sparse[[k]].toarray()[0]
+    direct = [u for j, u in enumerate(model.inputs) if d[j] != 0 or d1[j] != 0]
     if direct:
         raise UsageError(
             f"{what} {variable.text}: depends on the input {', '.join(direct)} directly, "
             "not on the state alone"
         )
     if variable.derivative:
-        through = [
-            u
-            for j, u in enumerate(model.inputs)
-            if abs(c @ model.B[:, j]) > ROW_TOL * _scale(c, model.B[:, j])
-        ]
+        B = model.B_sparse.toarray()
+        through = [u for j, u in enumerate(model.inputs) if abs(c @ B[:, j]) > ROW_TOL * _scale(c, B[:, j])]
         if through:
             raise UsageError(
                 f"{what} {variable.text}: its rate depends on the input {', '.join(through)} directly"
             )
-        c = c @ model.A
+        c = np.asarray(model.A_sparse.T @ c, dtype=float)
     return c
 
 
@@ -201,6 +203,8 @@ def conserved_relations(model: StateSpaceModel) -> NDArray[np.float64]:
     n = model.nstates
     if n == 0:
         return np.zeros((0, 0))
+    if n > RELATIONS_LIMIT:
+        return np.zeros((0, n))
     stacked = np.hstack([model.A, model.B])
     norms = np.linalg.norm(stacked, axis=1)
     norms[norms == 0] = 1.0
@@ -339,6 +343,10 @@ def change_coordinates(
         When the variables are not an invertible map of the state: naming
         the dependent ones, or what is missing.
     """
+    if model.nstates > RELATIONS_LIMIT:
+        raise UsageError(
+            f"--coordinates is for models of up to {RELATIONS_LIMIT} states ({model.nstates} here)"
+        )
     names = [v.name for v in variables]
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
@@ -459,7 +467,11 @@ class Condition:
 
 
 def parse_conditions(items: Sequence[str], netlist: Netlist, states: Sequence[str] = ()) -> list[Condition]:
-    """Parse ``--ic`` values; a name is a state when it is one of ``states`` (case-insensitive).
+    """Parse ``--ic`` values: a physical variable when the name reads as one, else a state name.
+
+    ``x(b1)`` and ``i(L1)`` can be both (an integrator state, an inductor
+    current): they are taken as variables, so that the relations between
+    states (:func:`conserved_relations`) apply to them too.
 
     Raises
     ------
@@ -476,12 +488,12 @@ def parse_conditions(items: Sequence[str], netlist: Netlist, states: Sequence[st
                 f"--ic {item!r}: expected NAME=VALUE, NAME a state or a variable such as angle(r1)"
             )
         key = name.strip()
-        if key.lower() in known:
-            out.append(Condition(item, known[key.lower()], value, None))
-            continue
         try:
             variable = parse_variable(key, netlist)
         except UsageError as exc:
+            if key.lower() in known:
+                out.append(Condition(item, known[key.lower()], value, None))
+                continue
             hint = f"; states: {', '.join(states)}" if states else ""
             raise UsageError(f"--ic {item!r}: {str(exc).split(': ', 1)[-1]}{hint}") from None
         out.append(Condition(item, variable.name, value, variable))
@@ -516,6 +528,16 @@ def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> ND
         return None
     n = model.nstates
     index = {s: k for k, s in enumerate(model.states)}
+    if all(c.variable is None for c in conditions):
+        # State names only: each sets its own state; a state given twice is refused.
+        x0 = np.zeros(n)
+        seen: set[str] = set()
+        for cond in conditions:
+            if cond.name in seen:
+                raise UsageError(f"--ic {cond.text}: over-determined: {cond.name} is given twice")
+            seen.add(cond.name)
+            x0[index[cond.name]] = cond.value
+        return x0
     rows, values, labels = [], [], []
     for cond in conditions:
         if cond.variable is None:

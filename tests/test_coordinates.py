@@ -334,3 +334,22 @@ def test_angle_bound_is_one_percent() -> None:
     from netlistdyn.validity import SMALL_ANGLE_LIMIT
 
     assert 1 - np.cos(SMALL_ANGLE_LIMIT) == pytest.approx(0.01, rel=1e-12)
+
+
+def _ladder(sections: int) -> str:
+    lines = ["ladder", "V1 n0 0 DC 1"]
+    for k in range(sections):
+        lines += [f"R{k} n{k} m{k} 1", f"L{k} m{k} n{k + 1} 1m", f"C{k} n{k + 1} 0 1u"]
+    return "\n".join(lines) + "\n"
+
+
+def test_large_models_keep_state_name_ics_and_refuse_coordinates() -> None:
+    """600 states: --ic by state name stays a direct assignment (no dense factorisation)."""
+    net = parse_text(_ladder(300))
+    prepared = prepare(net, ["v(n300)"], None, ["q(C7)=2e-6", "i(L3)=0.5"])
+    full = prepared.full
+    assert full.nstates == 600
+    assert prepared.x0[full.states.index("q(C7)")] == pytest.approx(2e-6, rel=1e-15)
+    assert np.count_nonzero(prepared.x0) == 2
+    with pytest.raises(Exception, match="for models of up to 400 states"):
+        prepare(net, None, "v(n1),v(n2)")
