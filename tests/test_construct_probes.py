@@ -94,6 +94,16 @@ PROBES: dict[str, tuple[bytes, str]] = {
     "ternary": (b"t\n.param a=1\nV1 in 0 1\nR1 in a {a>0 ? 1k : 2k}\nC1 a 0 1u\n", "refused"),
     "b_source_linear": (b"b\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nB1 b 0 V=2*V(a)+1\nR2 b 0 1k\n", "refused"),
     "e_value_linear": (b"e\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nE1 b 0 value={2*V(a)}\nR2 b 0 1k\n", "refused"),
+    "kicad_export_names": (
+        b".title KiCad schematic\nR1 Net-_C1-Pad2_ Net-_R1-Pad2_ 1k\nV1 Net-_R1-Pad2_ GND DC 0 AC 1\n"
+        b"C1 /lowpass Net-_C1-Pad2_ 100n\nR2 /lowpass GND 10k\nC2 Net-_C1-Pad2_ GND 47n\n.ac dec 10 1 1Meg\n",
+        "agree",
+    ),
+    "kicad_dc_parenthesised": (b"k\nV1 /vdd GND dc(5)\nR1 /vdd /a 1k\nC1 /a GND 1u\n", "agree"),
+    "kicad_probe_alli": (
+        b"k\n.save all\n.probe alli\nV1 in GND DC 0 AC 1\nR1 in a 1k\nC1 a GND 1u\n",
+        "agree",
+    ),
     "diode": (b"d\nV1 in 0 1\nR1 in a 1k\nD1 a 0 dmod\n.model dmod d\n", "refused"),
 }
 
