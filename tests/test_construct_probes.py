@@ -11,7 +11,10 @@ it. The expected outcome is today's, recorded so that every change shows:
 * ``wrong`` — a silent misreading (strict xfail: once fixed it fails until
   moved to ``agree``);
 * ``ngspice-refuses`` — ngspice 39 itself refuses the file, so netlistdyn must
-  refuse it too; ``accepts-invalid`` marks one it still accepts (strict xfail).
+  refuse it too; ``accepts-invalid`` marks one it still accepts (strict xfail);
+* ``other-simulator`` — ngspice 39 refuses a construct of LTspice, HSPICE or
+  Xyce that issue #10 asks netlistdyn to read: refused with one line, or, once
+  accepted, the model must agree with ngspice's reading of ``EQUIVALENT``.
 """
 
 from __future__ import annotations
@@ -24,11 +27,26 @@ import pytest
 import netlistdyn
 from netlistdyn.errors import NetlistError
 
-from .ngspice_reading import ReferenceUnavailable, build_reference, classify_text, ngspice_available
+from .ngspice_reading import (
+    ReferenceUnavailable,
+    build_reference,
+    classify_text,
+    compare_model,
+    ngspice_available,
+)
 
 pytestmark = pytest.mark.skipif(not ngspice_available(), reason="ngspice is not installed")
 
 RC = "V1 in 0 1\nR1 in a 1k\nC1 a 0 1u\n"
+# What a construct of another simulator (LTspice, HSPICE, Xyce) means, written so
+# that ngspice reads it; internal nodes carry a dot so that they are not compared.
+EQUIVALENT: dict[str, bytes] = {
+    "ltspice_rser": b"r\nV1 in 0 1\nR1 in a 10\nL1 a l1.ser 1m\nRL1ser l1.ser b 0.5\nC1 b 0 1u\n",
+    "value_keyword": b"k\nV1 in 0 1\nR1 in a {2*500}\nC1 a 0 1u\n",
+    "tran_one_argument": b"t\n" + RC.encode(),
+    "step_param": b"s\n.param rr=1k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n",
+    "backanno": b"b\n" + RC.encode(),
+}
 ONE_LINE = re.compile(r"^\S.*:\d+: \S.*$")
 
 # name: (netlist bytes, expected outcome today)
@@ -46,7 +64,7 @@ PROBES: dict[str, tuple[bytes, str]] = {
     "extra_dc_value": (b"x\nV1 in 0 DC 1 5\nR1 in a 1k\nC1 a 0 1u\n", "accepts-invalid"),
     "formfeed_in_comment": (b"f\n* note \x0c R9 in 0 1\n" + RC.encode(), "agree"),
     "u2028_in_comment": ("f\n* note \u2028R9 in 0 1\n".encode() + RC.encode(), "agree"),
-    "ltspice_rser": (b"r\nV1 in 0 1\nR1 in a 10\nL1 a b 1m Rser=0.5\nC1 b 0 1u\n", "ngspice-refuses"),
+    "ltspice_rser": (b"r\nV1 in 0 1\nR1 in a 10\nL1 a b 1m Rser=0.5\nC1 b 0 1u\n", "other-simulator"),
     "subckt_params": (
         b"p\n.subckt rc a b params: r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
         b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc c={2n}\n",
@@ -64,7 +82,7 @@ PROBES: dict[str, tuple[bytes, str]] = {
     ),
     "source_keywords": (b"k\nV1 in 0 dc=0 ac=1\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
     "passive_keywords": (b"k\nV1 in 0 1\nR1 in a R=1k\nC1 a 0 C=1u\nL1 a 0 L=1m\n", "refused"),
-    "value_keyword": (b"k\nV1 in 0 1\nR1 in a value={2*500}\nC1 a 0 1u\n", "ngspice-refuses"),
+    "value_keyword": (b"k\nV1 in 0 1\nR1 in a value={2*500}\nC1 a 0 1u\n", "other-simulator"),
     "multiplier": (b"m\nV1 in 0 1\nR1 in a 1k m=2\nC1 a 0 1u m=3\nL1 a 0 1m m=2\n", "refused"),
     "r_noisy": (b"n\nV1 in 0 1\nR1 in a 1k noisy=0\nC1 a 0 1u\n", "refused"),
     "element_ic": (b"i\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u IC=1\nL1 a 0 1m IC=1m\n", "refused"),
@@ -84,12 +102,12 @@ PROBES: dict[str, tuple[bytes, str]] = {
     "c_model_card": (b"m\n.model cmod c\nV1 in 0 1\nR1 in a 1k\nC1 a 0 cmod 1u\n", "refused"),
     "title_directive": (b"t\n.title my circuit\n" + RC.encode(), "refused"),
     "gnd_alias": (b"g\nV1 in GND 1\nR1 in a 1k\nC1 a gnd 1u\n", "agree"),
-    "tran_one_argument": (b"t\n" + RC.encode() + b".tran 2u\n", "ngspice-refuses"),
+    "tran_one_argument": (b"t\n" + RC.encode() + b".tran 2u\n", "other-simulator"),
     "step_param": (
         b"s\n.param rr=1k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n.step param rr list 1k 2k\n",
-        "ngspice-refuses",
+        "other-simulator",
     ),
-    "backanno": (b"b\n" + RC.encode() + b".backanno\n", "ngspice-refuses"),
+    "backanno": (b"b\n" + RC.encode() + b".backanno\n", "other-simulator"),
     "pwl_td": (b"p\nV1 in 0 pwl(0 0 1m 1) td=1m r=0\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
     "ternary": (b"t\n.param a=1\nV1 in 0 1\nR1 in a {a>0 ? 1k : 2k}\nC1 a 0 1u\n", "refused"),
     "b_source_linear": (b"b\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nB1 b 0 V=2*V(a)+1\nR2 b 0 1k\n", "refused"),
@@ -127,6 +145,24 @@ def test_construct_probe(name: str, tmp_path: Path) -> None:
         if expect == "accepts-invalid":
             pytest.xfail("netlistdyn accepts a file ngspice 39 refuses")
         pytest.fail("netlistdyn accepts a file ngspice 39 refuses")
+    if expect == "other-simulator":
+        path = tmp_path / "probe.cir"
+        path.write_bytes(text)
+        with pytest.raises(ReferenceUnavailable):
+            build_reference(path)
+        try:
+            netlistdyn.compile(path)
+        except NetlistError as exc:
+            assert ONE_LINE.match(str(exc).strip()), str(exc)
+            return
+        same = tmp_path / "equivalent.cir"
+        same.write_bytes(EQUIVALENT[name] + b".end\n")
+        _, ref = build_reference(same)
+        outcome = compare_model(path, ref)
+        assert outcome.status == "agree", (
+            f"accepted, but not as ngspice reads the equivalent: {outcome.detail}"
+        )
+        return
     outcome = classify_text(text, tmp_path)
     assert outcome.status != "no-reference", outcome.detail
     if expect == "wrong":
