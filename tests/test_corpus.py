@@ -30,7 +30,7 @@ MANIFEST = json.loads((CORPUS / "manifest.json").read_text(encoding="utf-8"))
 ENTRIES = MANIFEST["files"]
 ONE_LINE_REFUSAL = re.compile(r"^\S.*:\d+: \S.*$")
 
-pytestmark = pytest.mark.skipif(not ngspice_available(), reason="ngspice is not installed")
+needs_ngspice = pytest.mark.skipif(not ngspice_available(), reason="ngspice is not installed")
 
 
 def test_manifest_is_complete() -> None:
@@ -52,6 +52,7 @@ def test_manifest_is_complete() -> None:
             assert e.get("reason"), f"{e['file']}: an expected refusal or misreading needs its reason"
 
 
+@needs_ngspice
 @pytest.mark.parametrize("entry", ENTRIES, ids=[e["file"] for e in ENTRIES])
 def test_corpus_file(entry: dict) -> None:
     outcome = classify(CORPUS / entry["file"], tuple(entry.get("ngspice_drop", ())))
