@@ -7,7 +7,10 @@ table comes from::
 
     python benchmarks/corpus_table.py
 
-``--details`` also lists every file with its outcome. Needs ngspice.
+``--details`` also lists every file with its outcome. ``--original-check``
+also runs validate's check against ngspice's reading of the original file
+(:func:`netlistdyn.validate.check_original`) on every compiled file and counts
+its verdicts. Needs ngspice.
 """
 
 from __future__ import annotations
@@ -37,9 +40,29 @@ def _construct(reason: str) -> str:
     return re.sub(r"^(\.subckt )?[^\s:]+: ", "", reason)
 
 
+def _original_verdict(path: Path) -> str:
+    """validate's original-file check on ``path`` with its default outputs: agrees / DISAGREES / not run."""
+    from netlistdyn.analysis import analyze_eigenvalues
+    from netlistdyn.formulate import compile_netlist
+    from netlistdyn.parser import parse_file
+    from netlistdyn.probes import default_probes
+    from netlistdyn.validate import check_original
+
+    netlist = parse_file(path)
+    probes = default_probes(netlist)
+    model = compile_netlist(netlist, [p.name for p in probes])
+    check = check_original(str(path), netlist, model, probes, analyze_eigenvalues(model.A_sparse))
+    if not check.ran:
+        return "not run"
+    return "agrees" if check.passed else "DISAGREES"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--details", action="store_true", help="list every file")
+    parser.add_argument(
+        "--original-check", action="store_true", help="also run validate's original-file check"
+    )
     args = parser.parse_args(argv)
     if not ngspice_available():
         print("ngspice is not installed (apt-get install ngspice)", file=sys.stderr)
@@ -48,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     per_project: dict[str, Counter] = defaultdict(Counter)
     reasons: dict[str, list[str]] = defaultdict(list)
     rows = []
+    verdicts: dict[tuple[str, str], list[str]] = defaultdict(list)
     for entry in entries:
         outcome = classify(CORPUS / entry["file"], tuple(entry.get("ngspice_drop", ())))
         counts = per_project[entry["project"]]
@@ -58,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         if outcome.status in ("refused", "wrong", "no-reference"):
             reasons[f"{outcome.status}: {_construct(_reason(outcome.detail))}"].append(entry["file"])
         rows.append((entry["file"], outcome.status, outcome.states, _reason(outcome.detail)))
+        if args.original_check and outcome.status in ("agree", "wrong"):
+            verdicts[(outcome.status, _original_verdict(CORPUS / entry["file"]))].append(entry["file"])
     total: Counter = Counter()
     for counts in per_project.values():
         total.update(counts)
@@ -73,6 +99,12 @@ def main(argv: list[str] | None = None) -> int:
     for reason, files in sorted(reasons.items(), key=lambda kv: (-len(kv[1]), kv[0])):
         text = reason.replace("|", "\\|")
         print(f"| {text} | {len(files)} | `{files[0]}` |")
+    if args.original_check:
+        print()
+        print("| corpus outcome | validate's original-file check | files | example |")
+        print("|---|---|---|---|")
+        for (status, verdict), files in sorted(verdicts.items()):
+            print(f"| {status} | {verdict} | {len(files)} | `{files[0]}` |")
     if args.details:
         print()
         print("| file | outcome | states | detail |")
