@@ -411,6 +411,7 @@ def change_coordinates(
 
 
 def _unit_rows(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each row divided by its 2-norm (zero rows stay zero)."""
     scale = np.linalg.norm(rows, axis=1)
     scale[scale == 0] = 1.0
     return rows / scale[:, None]
@@ -418,10 +419,7 @@ def _unit_rows(rows: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def _null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
     """Orthonormal basis (columns) of {x : rows x = 0}, rows scaled first."""
-    scale = np.linalg.norm(rows, axis=1)
-    scale[scale == 0] = 1.0
-    scaled = rows / scale[:, None]
-    _, s, vt = np.linalg.svd(scaled)
+    _, s, vt = np.linalg.svd(_unit_rows(rows))
     rank = int(np.sum(s > RANK_TOL * (s[0] if s.size else 1.0)))
     return vt[rank:].T
 
