@@ -213,3 +213,45 @@ def test_every_mechanical_netlist_is_drawn_inside_the_frame(name) -> None:
         if rods:
             rows, cols = np.nonzero(mask)
             assert rows.min() > 0 and cols.min() > 0 and rows.max() < 199 and cols.max() < 319
+
+
+@pytest.mark.skipif(shutil.which("ffmpeg") is None or shutil.which("ffprobe") is None, reason="needs ffmpeg")
+def test_mp4_with_ffmpeg(tmp_path: Path) -> None:
+    import subprocess
+
+    target = tmp_path / "a.mp4"
+    result = CliRunner().invoke(
+        main,
+        [
+            "simulate",
+            str(NETLISTS / "two_blocks.cir"),
+            "--tstop",
+            "2",
+            "--fps",
+            "10",
+            "--frame-size",
+            "320x180",
+            "--animate",
+            str(target),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    probe = subprocess.run(
+        [
+            "ffprobe",
+            "-v",
+            "error",
+            "-count_frames",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=nb_read_frames,width,height",
+            "-of",
+            "csv=p=0",
+            str(target),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert probe.stdout.strip() == "320,180,21"
