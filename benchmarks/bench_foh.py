@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from netlistdyn import simulate
 from netlistdyn.formulate import compile_netlist
 from netlistdyn.parser import parse_file
+from netlistdyn.simulate import FohPropagator, input_signals, simulate_foh
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ("circuit2", "dipc", "servo_shaft", "two_blocks", "controlled", "waveforms", "cap_loop")
@@ -38,18 +38,18 @@ def main() -> None:
         model = compile_netlist(netlist)
         assert netlist.tran is not None
         tstop = netlist.tran.tstop
-        signals = simulate.input_signals(netlist, netlist.tran.tstep, tstop)
+        signals = input_signals(netlist, netlist.tran.tstep, tstop)
         rng = np.random.default_rng(1)
         times = np.sort(np.r_[0.0, tstop, rng.uniform(0, tstop, args.times)])
         start = time.perf_counter()
-        fast, _ = simulate.simulate_foh(model, signals, times)
+        fast, _ = simulate_foh(model, signals, times)
         middle = time.perf_counter()
-        original = simulate.FohPropagator.modal
-        simulate.FohPropagator.modal = property(lambda self: False)  # type: ignore[method-assign]
+        original = FohPropagator.modal
+        FohPropagator.modal = property(lambda self: False)  # type: ignore[method-assign]
         try:
-            slow, _ = simulate.simulate_foh(model, signals, times)
+            slow, _ = simulate_foh(model, signals, times)
         finally:
-            simulate.FohPropagator.modal = original  # type: ignore[method-assign]
+            FohPropagator.modal = original  # type: ignore[method-assign]
         end = time.perf_counter()
         peak = np.max(np.abs(slow), axis=0)
         diff = float(np.max(np.abs(fast - slow) / np.where(peak > 0, peak, 1.0)))

@@ -27,7 +27,7 @@ def main() -> None:
             check=False,
         )
         doc = json.loads(proc.stdout)
-        worst = max(o["max_rel_error"] for o in doc["outputs"])
+        worst = max(o["max_rel_error"] for o in doc["comparisons"])
         method = doc["ngspice"]["settings"].split("method=")[1].split()[0]
         print(
             f"| {path.name} | {doc['passed']} | {worst:.2g} | {doc['ngspice']['seconds']:.3f} "

@@ -3,16 +3,33 @@
 The Python API mirrors the command line::
 
     import netlistdyn
-    model = netlistdyn.compile("netlists/circuit1.cir", params={"R1": 100})
+    model = netlistdyn.compile("netlists/circuit1.cir", params={"R1": "100"})
     model.A, model.B, model.C, model.D, model.states
+    netlistdyn.eigenvalues(model)
+    sim = netlistdyn.simulate("netlists/circuit1.cir", tstop="20m")
+    sim["v(a)"], sim.time
+
+A netlist is a path, netlist text (a string with a line break) or an open
+file; parameters are numbers or SPICE numbers (``"10u"``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+from .api import (
+    NetlistSource,
+    Simulation,
+    SimulationError,
+    Sweep,
+    SweepCase,
+    Validation,
+    eigenvalues,
+    simulate,
+    sweep,
+    validate,
+)
 from .errors import ControlDimension, NetlistError, TopologyError, UsageError
 from .model import StateSpaceModel
 
@@ -22,29 +39,39 @@ if TYPE_CHECKING:
 __all__ = [
     "ControlDimension",
     "NetlistError",
+    "Simulation",
+    "SimulationError",
     "StateSpaceModel",
+    "Sweep",
+    "SweepCase",
     "TopologyError",
     "UsageError",
+    "Validation",
     "compile",
+    "eigenvalues",
+    "simulate",
+    "sweep",
     "symbolic",
+    "validate",
 ]
 __version__ = "0.1.0"
 
 
 def compile(
-    path: str | Path,
-    params: Mapping[str, float] | None = None,
+    netlist: NetlistSource,
+    params: Mapping[str, Any] | None = None,
     outputs: Sequence[str] | None = None,
     coordinates: Sequence[str] | str | None = None,
 ) -> StateSpaceModel:
-    """Parse and compile a netlist file.
+    """Parse and compile a netlist.
 
     Parameters
     ----------
-    path : str or Path
-        Netlist file.
-    params : Mapping[str, float], optional
-        ``.param`` overrides.
+    netlist : str, path-like or file object
+        A path, netlist text (a string with a line break; its first line is
+        the title) or an open file such as ``io.StringIO``.
+    params : mapping, optional
+        ``.param`` overrides: numbers or SPICE numbers (``{"R1": "10u"}``).
     outputs : sequence of str, optional
         Output specifications (default: every node voltage).
     coordinates : sequence of str or str, optional
@@ -56,29 +83,30 @@ def compile(
     -------
     StateSpaceModel
     """
-    from .formulate import compile_netlist
-    from .parser import parse_file
+    from .api import compile_model
 
     if coordinates is not None:
+        from .api import api_errors, read_netlist
         from .coordinates import prepare
 
-        return prepare(parse_file(path, params or {}), outputs, coordinates).model
-    return compile_netlist(parse_file(path, params or {}), outputs)
+        with api_errors(params):
+            return prepare(read_netlist(netlist, params), outputs, coordinates).model
+    return compile_model(netlist, params, outputs)[1]
 
 
 def symbolic(
-    path: str | Path,
-    params: Mapping[str, float] | None = None,
+    netlist: NetlistSource,
+    params: Mapping[str, Any] | None = None,
     outputs: Sequence[str] | None = None,
     keep: Sequence[str] | None = None,
 ) -> SymbolicModel:
-    """Parse a netlist and compile it with element values as sympy symbols.
+    """Parse a netlist and compile it with element values as sympy symbols (needs sympy).
 
     Parameters
     ----------
-    path : str or Path
-        Netlist file.
-    params : Mapping[str, float], optional
+    netlist : str, path-like or file object
+        As :func:`compile`.
+    params : mapping, optional
         ``.param`` overrides (they set the values of elements not in ``keep``).
     outputs : sequence of str, optional
         Output specifications.
@@ -91,7 +119,8 @@ def symbolic(
         ``.A .B .C .D .D1`` as ``sympy.ImmutableMatrix``, the labels, and
         ``.numeric(values)`` to evaluate them.
     """
-    from .parser import parse_file
+    from .api import api_errors, read_netlist
     from .symbolic import symbolic_model
 
-    return symbolic_model(parse_file(path, params or {}), outputs, keep)
+    with api_errors(params):
+        return symbolic_model(read_netlist(netlist, params), outputs, keep)

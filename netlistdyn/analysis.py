@@ -109,6 +109,22 @@ class EigenAnalysis:
     complete: bool
     warnings: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        """Verdict and a table of the modes (λ, ωn in rad/s, fn in Hz, ζ, τ)."""
+        from .display import eigen_text
+
+        return eigen_text(self)
+
+    def _repr_html_(self) -> str:
+        from .display import eigen_html
+
+        return eigen_html(self)
+
+    def _repr_latex_(self) -> str | None:
+        from .display import eigen_latex
+
+        return eigen_latex(self)
+
 
 def _eig(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eigenvalues with left and right eigenvectors (LAPACK geev, balanced)."""

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -169,6 +170,7 @@ def run_bench(
     methods: tuple[str, ...] | None = None,
     with_ngspice: bool = True,
     reference_rtol: float = 1e-12,
+    progress: Callable[[float], None] | None = None,
 ) -> BenchReport:
     """Run every configuration and score it against a checked reference.
 
@@ -188,6 +190,8 @@ def run_bench(
         Our methods to run (default: all that apply to the model size).
     with_ngspice : bool
         Include ngspice rows (skipped with a status when ngspice is missing).
+    progress : callable, optional
+        Called with the fraction of runs done.
     """
     times = np.linspace(0.0, horizon.tstop, points + 1)
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
@@ -211,13 +215,15 @@ def run_bench(
             ):
                 configs.append(("spice", name, replace(settings, grid=points)))
     samples: dict[int, list[tuple[float, float, str, str, str]]] = {i: [] for i in range(len(configs))}
-    for _ in range(max(repeats, 1)):
+    for repeat in range(max(repeats, 1)):
         for i, (kind, name, arg) in enumerate(configs):
             if samples[i] and samples[i][-1][2] != "ok":
                 continue  # a failed configuration is not retried
             samples[i].append(
                 _one_run(kind, name, arg, model, netlist, probes, signals, times, reference.outputs, timeout)
             )
+            if progress is not None:
+                progress((repeat * len(configs) + i + 1) / (max(repeats, 1) * len(configs)))
     rows = []
     for i, (kind, name, arg) in enumerate(configs):
         runs = samples[i]

@@ -7,9 +7,11 @@ traceback (set ``NETLISTDYN_DEBUG=1`` to see one).
 
 from __future__ import annotations
 
+import contextlib
+import math
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import click
@@ -26,15 +28,57 @@ EXIT_NO_NGSPICE = 4
 EXIT_INTERNAL = 70
 
 
+class SpiceNumber(click.ParamType):
+    """A numeric option that reads SPICE numbers (``20m``, ``1u``, ``1e-3``, ``1meg``), as ``--param`` does.
+
+    Parameters
+    ----------
+    positive : bool
+        Refuse zero and negative values.
+    integer : bool
+        Require a whole number (``--points 1k`` is 1000).
+    """
+
+    name = "number"
+
+    def __init__(self, positive: bool = False, integer: bool = False) -> None:
+        self.positive = positive
+        self.integer = integer
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            number = float(value)
+        else:
+            parsed = parse_number(str(value).strip())
+            if parsed is None:
+                self.fail(f"{value!r} is not a number (SPICE numbers such as 20m, 1u, 1e-3 are accepted)")
+            number = parsed
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number")
+        if self.positive and number <= 0:
+            self.fail(f"{value!r}: must be positive")
+        if self.integer:
+            if number != int(number):
+                self.fail(f"{value!r}: must be a whole number")
+            return int(number)
+        return number
+
+
+#: Shared option types: any SPICE number, a positive one, a positive whole number.
+NUMBER = SpiceNumber()
+POSITIVE = SpiceNumber(positive=True)
+COUNT = SpiceNumber(positive=True, integer=True)
+
+
 def parse_param_overrides(items: tuple[str, ...]) -> dict[str, float]:
-    """``("R1=1k", ...)`` → ``{"r1": 1000.0}``; SPICE numbers accepted."""
+    """``("R1=1k", ...)`` → ``{"R1": 1000.0}``; SPICE numbers accepted, names as the user wrote them."""
     out: dict[str, float] = {}
     for item in items:
         name, sep, text = item.partition("=")
         value = parse_number(text.strip()) if sep else None
         if not name.strip() or value is None:
             raise UsageError(f"--param {item!r}: expected NAME=VALUE with a number (e.g. R1=1k)")
-        out[name.strip().lower()] = value
+        out[name.strip()] = value
     return out
 
 
@@ -113,8 +157,9 @@ def path_option(flag: str, help_text: str, dest: str | None = None) -> Callable[
 
 
 tstop_option = click.option(
-    "--tstop", type=float, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
+    "--tstop", type=POSITIVE, default=None, help="Horizon [s] (default: .tran, else from eigenvalues)."
 )
+quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar on stderr.")
 
 
 def load_and_compile(netlist: str, params: tuple[str, ...], outputs: list[str] | None) -> tuple[Any, Any]:
@@ -199,11 +244,16 @@ out_option = click.option(
 @click.option(
     "--canonical",
     is_flag=True,
-    help="Controller and observer canonical (companion) forms, as the seeds build them.",
+    help="Controller and observer canonical (companion) forms, as the lecture notes build them.",
 )
-@path_option("--bode", "PNG of the frequency response of every input/output pair.")
+@path_option(
+    "--bode",
+    "Plot of the frequency response of every input/output pair over the netlist's .ac range "
+    "(PNG, or .svg/.pdf by extension).",
+)
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @coordinates_option
+@quiet_option
 @out_option
 def analyze(
     netlist: str,
@@ -219,6 +269,7 @@ def analyze(
     bode: str | None,
     save: str | None,
     coordinates: str | None,
+    quiet: bool,
     out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
@@ -237,6 +288,10 @@ def analyze(
     )
 
     def body() -> int:
+        from . import progress
+
+        stages = contextlib.ExitStack()
+        bar = stages.enter_context(progress.bar("analyze", 2, quiet, unit="stage"))
         change = None
         if coordinates is not None:
             if symbolic or symbols is not None:
@@ -247,6 +302,7 @@ def analyze(
             model, change = prepared.model, prepared.change
         else:
             parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+        bar.update()
         notes: list[str] = []
         sym = None
         if symbolic or symbols is not None:
@@ -272,15 +328,17 @@ def analyze(
                 structure = control.structure(model)
             tfs = control.transfer_functions(model) if control_report else []
         analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig)
+        bar.update()
+        stages.close()
         forms = canonical_forms(model) if canonical else None
         if save:
             from .exports import save_model
 
             save_model(model, save)
         if bode:
-            from .plots import bode_plot
+            from .plots import ac_range, bode_plot
 
-            bode_plot(model, bode)
+            bode_plot(model, bode, ac_range(parsed))
         if fmt == "json":
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist
@@ -329,16 +387,31 @@ def analyze(
     "shows what size of modelling error validate detects.",
 )
 @tstop_option
-@click.option("--tstep", type=float, default=None, help="Output step [s].")
+@click.option("--tstep", type=POSITIVE, default=None, help="Output step [s].")
 @click.option(
     "--rtol",
-    type=float,
+    type=POSITIVE,
     default=1e-3,
     show_default=True,
     help="Pass threshold: max error relative to each waveform's peak.",
 )
-@click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to ngspice.")
-@path_option("--plot", "Write a PNG overlay of both responses.")
+@click.option(
+    "--timeout", type=POSITIVE, default=600.0, show_default=True, help="Seconds allowed to ngspice."
+)
+@click.option(
+    "--ngspice-reltol",
+    type=POSITIVE,
+    default=None,
+    help="ngspice's reltol for the reference run (default 1e-9, relaxed to 1e-7 and 1e-5 if ngspice aborts).",
+)
+@click.option(
+    "--ngspice-maxstep",
+    type=POSITIVE,
+    default=None,
+    help="ngspice's maximum step [s] (default: from the eigenvalues, bounding the trapezoidal "
+    "rule's phase error to 1e-6 over the horizon).",
+)
+@path_option("--plot", "Write a plot of both responses (PNG, or .svg/.pdf by extension).")
 @click.option(
     "--pz/--no-pz",
     default=True,
@@ -346,6 +419,7 @@ def analyze(
     help="Compare ngspice's .pz poles for models of up to 6 states (informative).",
 )
 @format_option
+@quiet_option
 @out_option
 def validate(
     netlist: str,
@@ -356,9 +430,12 @@ def validate(
     tstep: float | None,
     rtol: float,
     timeout: float,
+    ngspice_reltol: float | None,
+    ngspice_maxstep: float | None,
     plot: str | None,
     pz: bool,
     fmt: str,
+    quiet: bool,
     out: str | None,
 ) -> None:
     """Run NETLIST through ngspice and the compiled model and compare the responses.
@@ -372,39 +449,35 @@ def validate(
         if missing:
             click.echo(f"netlistdyn: {missing}", err=True)
             return EXIT_NO_NGSPICE
-        from .analysis import analyze_eigenvalues
-        from .formulate import compile_netlist
-        from .parser import parse_file
-        from .probes import default_probes, parse_probe
+        from . import progress
+        from .api import validation_pipeline
+        from .display import signal_units
         from .report import to_json, validation_dict, validation_text
-        from .simulate import choose_horizon
-        from .validate import compare, compare_poles, spice_settings_for, with_original_check
 
-        overrides = parse_param_overrides(params)
-        parsed = parse_file(netlist, overrides)
-        probes = [parse_probe(o, parsed) for o in outputs] if outputs else default_probes(parsed)
-        model_net = parse_file(netlist, {**overrides, **parse_param_overrides(model_params)})
-        model = compile_netlist(model_net, [p.name for p in probes])
-        _print_warnings(model.info.warnings)
-        if (tstop is not None and tstop <= 0) or (tstep is not None and tstep <= 0):
-            raise UsageError("--tstop and --tstep must be positive")
-        eig = analyze_eigenvalues(model.A_sparse)
-        horizon = choose_horizon(parsed, eig, tstop, tstep)
-        settings = spice_settings_for(horizon, eig)
-        report = compare(parsed, model, probes, horizon, settings, rtol, timeout)
-        report = with_original_check(report, netlist, parsed, model, probes, eig, overrides, timeout)
-        if pz:
-            from dataclasses import replace
-
-            report = replace(report, poles=compare_poles(parsed, eig, probes))
+        with progress.bar("validate (ngspice and model)", None, quiet, unit="run"):
+            result = validation_pipeline(
+                netlist,
+                parse_param_overrides(params),
+                list(outputs) or None,
+                parse_param_overrides(model_params),
+                tstop,
+                tstep,
+                rtol,
+                timeout,
+                pz,
+                {"reltol": ngspice_reltol, "maxstep": ngspice_maxstep},
+                warn=lambda w: click.echo(str(w), err=True),
+            )
+        report = result.report
         if plot and report.spice.ok:
+            from .parser import parse_file
             from .plots import validation_plot
 
-            validation_plot(report, plot)
+            validation_plot(report, plot, signal_units(parse_file(netlist), result.outputs), result.title)
         if fmt == "json":
-            emit(to_json(validation_dict(report, parsed.title)), out)
+            emit(to_json(validation_dict(report, result.title)), out)
         else:
-            emit(validation_text(report, parsed.title), out)
+            emit(validation_text(report, result.title), out)
         return 0 if report.passed else EXIT_MISMATCH
 
     run_guarded(body)
@@ -415,7 +488,7 @@ def validate(
 @output_option
 @param_option
 @tstop_option
-@click.option("--tstep", type=float, default=None, help="Output step [s] (default: tstop/1000).")
+@click.option("--tstep", type=POSITIVE, default=None, help="Output step [s] (default: tstop/1000).")
 @click.option(
     "--method",
     type=click.Choice(list(METHOD_CHOICES)),
@@ -424,8 +497,8 @@ def validate(
     help="exact (dense expm, small models), rational (sparse Padé, large models), krylov, "
     "or a scipy solve_ivp method; auto picks by size.",
 )
-@click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance.")
-@click.option("--atol", type=float, default=None, help="Absolute tolerance (solve_ivp methods).")
+@click.option("--rtol", type=POSITIVE, default=1e-10, show_default=True, help="Relative tolerance.")
+@click.option("--atol", type=POSITIVE, default=None, help="Absolute tolerance (solve_ivp methods).")
 @click.option(
     "--ic",
     "ics",
@@ -437,12 +510,12 @@ def validate(
 @coordinates_option
 @click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
 @path_option("--csv", "Write the outputs as CSV.", "csv_path")
-@path_option("--plot", "Write a PNG plot.")
+@path_option("--plot", "Write a plot (PNG, or the format of the file's extension: .svg, .pdf).")
 @path_option("--animate", "Animate a mechanical netlist into a .gif (or .mp4 with ffmpeg).")
-@click.option("--fps", type=float, default=25.0, show_default=True, help="--animate: frames per second.")
+@click.option("--fps", type=POSITIVE, default=25.0, show_default=True, help="--animate: frames per second.")
 @click.option(
     "--speed",
-    type=float,
+    type=POSITIVE,
     default=1.0,
     show_default=True,
     help="--animate: simulated seconds per second shown.",
@@ -455,6 +528,7 @@ def validate(
     help="--animate: spacing=M (rest distance between nodes) or rod_scale=F (drawn/true rod length).",
 )
 @format_option
+@quiet_option
 @out_option
 def simulate(
     netlist: str,
@@ -476,6 +550,7 @@ def simulate(
     frame_size: str,
     geometry: tuple[str, ...],
     fmt: str,
+    quiet: bool,
     out: str | None,
 ) -> None:
     """Time response of NETLIST to its own source waveforms, from zero state (or --ic).
@@ -486,14 +561,13 @@ def simulate(
     def body() -> int:
         from dataclasses import replace
 
-        import numpy as np
-
-        from . import integrators
-        from .analysis import analyze_eigenvalues
+        from . import progress
+        from .api import simulation_pipeline
         from .coordinates import select_outputs
+        from .display import eng, signal_units
         from .parser import parse_file
         from .report import simulation_csv, simulation_dict, simulation_summary, to_json
-        from .simulate import choose_horizon, input_signals
+        from .simulate import input_signals
         from .validity import rod_angles, validity_warnings
 
         parsed = parse_file(netlist, parse_param_overrides(params))
@@ -506,41 +580,48 @@ def simulate(
             extra += position_variables(parsed)
         parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra))
         full = prepared.full
-        for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
-            if value is not None and not value > 0:
-                raise UsageError(f"{name} must be positive")
-        eig = analyze_eigenvalues(full.A_sparse, "auto" if full.nstates <= 1000 else "extreme")
-        horizon = choose_horizon(parsed, eig, tstop, tstep)
-        count = round(horizon.tstop / horizon.tstep)
-        if count > 10_000_000:
-            raise UsageError(f"{count} output points: choose a larger --tstep")
-        times = np.linspace(0.0, horizon.tstop, count + 1)
-        signals = input_signals(parsed, horizon.tstep, horizon.tstop)
-        run = integrators.run(
-            full, signals, times, method, rtol, atol, prepared.x0, force, _progress_printer(fmt)
-        )
+        with progress.bar("simulate", 100, quiet, unit="%") as bar:
+            run = simulation_pipeline(
+                parsed,
+                full,
+                tstop,
+                tstep,
+                method,
+                rtol,
+                atol,
+                prepared.x0,
+                force,
+                progress.fraction_callback(bar),
+            )
+        horizon = run.horizon
         if not run.ok:
             click.echo(f"netlistdyn: {run.method} {run.status}: {run.message}", err=True)
             return EXIT_MISMATCH
         model = select_outputs(full, prepared.shown)
-        result = replace(run, outputs=run.outputs[:, [full.outputs.index(n) for n in prepared.shown]])
-        warnings = validity_warnings(run.time, run.outputs, full.outputs, angles, eig)
+        result = replace(
+            run,
+            values=run.values[:, [full.outputs.index(n) for n in prepared.shown]],
+            outputs=tuple(model.outputs),
+            units=signal_units(parsed, model.outputs),
+        )
+        warnings = validity_warnings(run.time, run.values, full.outputs, angles, run.eigen)
         for warning in warnings:
             click.echo(f"netlistdyn: warning: {warning}", err=True)
         if csv_path:
-            write_atomic(csv_path, simulation_csv(result, model.outputs))
+            write_atomic(csv_path, simulation_csv(result))
         if plot:
             from .plots import simulation_plot
 
-            simulation_plot(result, model.outputs, parsed.title, plot)
+            simulation_plot(result, plot)
         if animate:
             from .animate import Animation
 
-            movie = Animation(parsed, run.time, run.outputs, full.outputs, signals(run.time), view)
+            signals = input_signals(parsed, horizon.tstep, horizon.tstop)
+            movie = Animation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
             frames = movie.save(animate)
             click.echo(f"netlistdyn: {animate}: {frames} frames at {fps:g} fps", err=True)
         if fmt == "json":
-            doc = simulation_dict(result, model, horizon)
+            doc = simulation_dict(result, netlist)
             doc["warnings"] = warnings
             if prepared.change is not None:
                 from .coordinates import change_dict
@@ -548,12 +629,12 @@ def simulate(
                 doc["coordinates"] = change_dict(prepared.change)
             emit(to_json(doc), out)
         else:
-            note = f" ({horizon.source})"
             summary = (
-                f"{parsed.title}\nsimulated 0..{horizon.tstop:g} s, {times.size} points{note}; "
+                f"{parsed.title}\nsimulated 0..{eng(horizon.tstop, 's')}, {result.time.size} points "
+                f"every {eng(horizon.tstep, 's')} ({horizon.source}); "
                 f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
             )
-            text = summary + simulation_summary(result, model.outputs)
+            text = summary + simulation_summary(result)
             if prepared.change is not None:
                 from .coordinates import change_text
 
@@ -569,9 +650,11 @@ def simulate(
 @output_option
 @param_option
 @tstop_option
-@click.option("--points", type=int, default=1000, show_default=True, help="Grid intervals for scoring.")
-@click.option("--repeats", type=int, default=3, show_default=True, help="Timed repetitions (median).")
-@click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds allowed to each run.")
+@click.option("--points", type=COUNT, default=1000, show_default=True, help="Grid intervals for scoring.")
+@click.option("--repeats", type=COUNT, default=3, show_default=True, help="Timed repetitions (median).")
+@click.option(
+    "--timeout", type=POSITIVE, default=600.0, show_default=True, help="Seconds allowed to each run."
+)
 @click.option(
     "--method",
     "methods",
@@ -582,13 +665,14 @@ def simulate(
 @click.option("--ngspice/--no-ngspice", default=True, show_default=True, help="Include ngspice rows.")
 @click.option(
     "--reference-rtol",
-    type=float,
+    type=POSITIVE,
     default=1e-12,
     show_default=True,
     help="Tolerance of the large-model reference (checked 10x looser).",
 )
-@path_option("--plot", "Log-log PNG of error against time.")
+@path_option("--plot", "Log-log plot of error against time (PNG, or .svg/.pdf by extension).")
 @format_option
+@quiet_option
 @out_option
 def bench(
     netlist: str,
@@ -603,11 +687,13 @@ def bench(
     reference_rtol: float,
     plot: str | None,
     fmt: str,
+    quiet: bool,
     out: str | None,
 ) -> None:
     """Error against run time for every integration method and for ngspice, on NETLIST."""
 
     def body() -> int:
+        from . import progress
         from .analysis import analyze_eigenvalues
         from .bench import run_bench
         from .probes import parse_probe
@@ -621,19 +707,21 @@ def bench(
         probes = [parse_probe(name, parsed) for name in model.outputs]
         eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
         horizon = choose_horizon(parsed, eig, tstop, None)
-        report = run_bench(
-            parsed,
-            model,
-            probes,
-            horizon,
-            spice_settings_for(horizon, eig),
-            points,
-            repeats,
-            timeout,
-            methods or None,
-            ngspice,
-            reference_rtol,
-        )
+        with progress.bar("bench", 100, quiet, unit="%") as bar:
+            report = run_bench(
+                parsed,
+                model,
+                probes,
+                horizon,
+                spice_settings_for(horizon, eig),
+                points,
+                repeats,
+                timeout,
+                methods or None,
+                ngspice,
+                reference_rtol,
+                progress.fraction_callback(bar),
+            )
         if plot:
             from .plots import bench_plot
 
@@ -654,17 +742,33 @@ def bench(
     help="Values of a .param to sweep (repeatable; equal-length lists go together).",
 )
 @output_option
-@click.option("--jobs", type=int, default=1, show_default=True, help="Parallel processes (workers).")
+@click.option("--jobs", type=COUNT, default=1, show_default=True, help="Parallel processes (workers).")
 @click.option(
     "--scheduler",
     default="processes",
     show_default=True,
     metavar="processes|dask|tcp://HOST:PORT",
     help="Where the cases run: this machine's process pool, a local Dask cluster of --jobs "
-    "workers, or a running Dask scheduler (needs dask[distributed]; workers must see the netlist).",
+    "workers, or a running Dask scheduler (needs dask[distributed]).",
 )
-@path_option("--plot", "PNG of the eigenvalues against the swept parameter (root locus).")
-@format_option
+@click.option(
+    "--eig",
+    type=click.Choice(["auto", "all", "extreme"]),
+    default="auto",
+    show_default=True,
+    help="Eigenvalues per case: all (dense, with error estimates), extreme (ARPACK: the slowest "
+    "and fastest few, much cheaper for large models), auto by size.",
+)
+@path_option("--plot", "Root-locus plot of the eigenvalues (PNG, or .svg/.pdf by extension).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["text", "json", "jsonl"]),
+    default="text",
+    show_default=True,
+    help="jsonl: one JSON object per case, written as each case finishes (a stopped sweep keeps them).",
+)
+@quiet_option
 @out_option
 def sweep(
     netlist: str,
@@ -672,38 +776,64 @@ def sweep(
     outputs: tuple[str, ...],
     jobs: int,
     scheduler: str,
+    eig: str,
     plot: str | None,
     fmt: str,
+    quiet: bool,
     out: str | None,
 ) -> None:
-    """Eigenvalues and stability for each case of a parameter sweep (compiled once)."""
+    """Eigenvalues and stability for each case of a parameter sweep (compiled once).
+
+    Eigenvalues are sorted in the first case and then follow each mode from case to case.
+    """
 
     def body() -> int:
-        from .report import sweep_text, to_json
-        from .sweep import expand_cases, run_sweep
+        from . import progress
+        from .report import sweep_record_json, sweep_text, to_json
+        from .sweep import expand_cases, iter_sweep
 
         cases = expand_cases(params)
-        result = run_sweep(netlist, cases, list(outputs) or None, max(jobs, 1), scheduler)
+        result = []
+        with progress.bar("sweep", len(cases), quiet, unit="case") as bar, _stream(fmt, out) as write:
+            for record in iter_sweep(netlist, cases, list(outputs) or None, max(jobs, 1), scheduler, eig):
+                result.append(record)
+                if write is not None:
+                    write(sweep_record_json(record))
+                bar.update()
         if plot:
             from .plots import sweep_plot
 
             sweep_plot(result, plot)
-        emit(to_json({"netlist": netlist, "cases": result}) if fmt == "json" else sweep_text(result), out)
+        if fmt == "json":
+            emit(to_json({"netlist": netlist, "cases": result}), out)
+        elif fmt == "text":
+            emit(sweep_text(result), out)
         return 0
 
     run_guarded(body)
 
 
-def _progress_printer(fmt: str) -> Callable[[float], None] | None:
-    """A one-line progress indicator on stderr, only on a terminal."""
-    if not sys.stderr.isatty():
-        return None
+@contextlib.contextmanager
+def _stream(fmt: str, out: str | None) -> Iterator[Callable[[str], None] | None]:
+    """For ``--format jsonl``: a function writing one line and flushing it (to ``out`` or stdout).
 
-    def show(fraction: float) -> None:
-        sys.stderr.write(f"\rsimulating: {100 * fraction:5.1f} %")
-        sys.stderr.flush()
+    Streaming is not atomic by design: each finished case is on disk at once,
+    so a sweep stopped half way keeps the cases it finished.
+    """
+    if fmt != "jsonl":
+        yield None
+        return
+    handle = open(out, "w", encoding="utf-8") if out else sys.stdout  # noqa: SIM115
+    try:
 
-    return show
+        def write(line: str) -> None:
+            handle.write(line + "\n")
+            handle.flush()
+
+        yield write
+    finally:
+        if out:
+            handle.close()
 
 
 MODEL_SUFFIXES = (".json", ".npz", ".mat")

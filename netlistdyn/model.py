@@ -195,6 +195,22 @@ class StateSpaceModel:
         """True when some output depends on an input's derivative."""
         return self.D1_sparse.count_nonzero() > 0
 
+    def __repr__(self) -> str:
+        """Sizes, labels and (up to 16 states) the labelled matrices; never sparse-array dumps."""
+        from .display import model_text
+
+        return model_text(self)
+
+    def _repr_html_(self) -> str:
+        from .display import model_html
+
+        return model_html(self)
+
+    def _repr_latex_(self) -> str | None:
+        from .display import model_latex
+
+        return model_latex(self)
+
     def to_scipy(self) -> object:
         """``scipy.signal.StateSpace`` of the model (see :func:`to_scipy`)."""
         return to_scipy(self)

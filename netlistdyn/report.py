@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .analysis import EigenAnalysis
+from .display import eng
 from .errors import UsageError
 from .model import StateSpaceModel
 
@@ -75,6 +76,7 @@ def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, A
                 "re": m.value.real,
                 "im": m.value.imag,
                 "natural_frequency": m.natural_frequency,
+                "natural_frequency_hz": m.natural_frequency / (2 * math.pi),
                 "damping": _finite(m.damping),
                 "time_constant": _finite(m.time_constant),
                 "abs_error": _finite(m.abs_error),
@@ -90,19 +92,20 @@ def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, A
     return doc
 
 
+def _clean(obj: Any) -> Any:
+    """Non-finite floats as None, tuples as lists, recursively (JSON has no inf/nan)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    return obj
+
+
 def to_json(doc: dict[str, Any]) -> str:
     """Serialise with non-finite numbers as null (JSON has no inf/nan)."""
-
-    def clean(obj: Any) -> Any:
-        if isinstance(obj, float):
-            return obj if math.isfinite(obj) else None
-        if isinstance(obj, dict):
-            return {k: clean(v) for k, v in obj.items()}
-        if isinstance(obj, list | tuple):
-            return [clean(v) for v in obj]
-        return obj
-
-    body = ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in clean(doc).items())
+    body = ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in _clean(doc).items())
     return "{\n" + body + "\n}\n"
 
 
@@ -171,10 +174,11 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
         out.append("")
         out.append(f"eigenvalues ({eig.method}):")
         out.append(
-            f"  {'real':>14} {'imag':>14} {'wn [rad/s]':>12} {'damping':>9} {'tau [s]':>11} {'rel.err':>8}"
+            f"  {'real [1/s]':>14} {'imag [1/s]':>14} {'wn [rad/s]':>12} {'fn':>11} {'damping':>9} "
+            f"{'tau':>11} {'rel.err':>8}"
         )
         for m in eig.modes:
-            tau = f"{m.time_constant:.5g}" if math.isfinite(m.time_constant) else "inf"
+            tau = eng(m.time_constant, "s") if math.isfinite(m.time_constant) else "inf"
             zeta = f"{m.damping:.4g}" if math.isfinite(m.damping) else "-"
             if math.isfinite(m.rel_error):
                 err = f"{m.rel_error:.0e}"
@@ -183,7 +187,9 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
             else:
                 err = "-"  # not estimated
             re, im = m.value.real + 0.0, m.value.imag + 0.0  # no "-0" in the table
-            out.append(f"  {re:>14.8g} {im:>14.8g} {m.natural_frequency:>12.6g} {zeta:>9} {tau:>11} {err:>8}")
+            fn = eng(m.natural_frequency / (2 * math.pi), "Hz", 4)
+            wn = m.natural_frequency
+            out.append(f"  {re:>14.8g} {im:>14.8g} {wn:>12.6g} {fn:>11} {zeta:>9} {tau:>11} {err:>8}")
         stiff = f"{eig.stiffness_ratio:.4g}" if eig.stiffness_ratio is not None else "n/a"
         out.append(f"stability: {eig.verdict}; stiffness ratio: {stiff}")
         for warning in eig.warnings:
@@ -192,7 +198,11 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
 
 
 def validation_dict(report: Any, title: str) -> dict[str, Any]:
-    """The JSON document for ``validate --format json``."""
+    """The JSON document for ``validate --format json``.
+
+    ``outputs`` is the list of output names, as in ``analyze`` and
+    ``simulate``; ``comparisons`` holds one record per output, in that order.
+    """
     spice = report.spice
     doc: dict[str, Any] = {
         "netlist": report.netlist,
@@ -212,7 +222,8 @@ def validation_dict(report: Any, title: str) -> dict[str, Any]:
             "points": int(report.time.size),
         },
         "model_seconds": report.model_seconds,
-        "outputs": [
+        "outputs": [c.name for c in report.comparisons],
+        "comparisons": [
             {
                 "name": c.name,
                 "peak": c.peak,
@@ -252,7 +263,7 @@ def validation_text(report: Any, title: str) -> str:
     out = [
         title,
         f"netlist: {report.netlist}",
-        f"horizon: {hz.tstop:g} s, output step {hz.tstep:g} s ({hz.source})",
+        f"horizon: {eng(hz.tstop, 's')}, output step {eng(hz.tstep, 's')} ({hz.source})",
         f"ngspice: {spice.settings.describe()}",
     ]
     if not spice.ok:
@@ -303,38 +314,45 @@ def validation_text(report: Any, title: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def simulation_csv(result: Any, names: Sequence[str]) -> str:
+def simulation_csv(sim: Any) -> str:
     """Time and outputs as CSV with a header row (full double precision)."""
-    header = ",".join(["time", *names])
-    rows = [
-        ",".join(repr(float(v)) for v in (t, *row))
-        for t, row in zip(result.time, result.outputs, strict=True)
-    ]
+    header = ",".join(["time", *sim.outputs])
+    rows = [",".join(repr(float(v)) for v in (t, *row)) for t, row in zip(sim.time, sim.values, strict=True)]
     return header + "\n" + "\n".join(rows) + "\n"
 
 
-def simulation_dict(result: Any, model: StateSpaceModel, horizon: Any) -> dict[str, Any]:
-    """The JSON document for ``simulate --format json``."""
-    return {
-        "title": model.title,
-        "time": result.time.tolist(),
-        "outputs": {name: result.outputs[:, j].tolist() for j, name in enumerate(model.outputs)},
-        "method": result.method,
-        "setting": result.setting,
-        "seconds": result.seconds,
-        "status": result.status,
-        "stats": result.stats,
-        "horizon": {"tstep": horizon.tstep, "tstop": horizon.tstop, "source": horizon.source},
-    }
+def simulation_dict(sim: Any, netlist: str | None = None) -> dict[str, Any]:
+    """The JSON document for ``simulate --format json``.
+
+    ``outputs`` is the list of output names, as in ``analyze`` and
+    ``validate``; the samples are ``values[name]`` at ``time``.
+    """
+    doc: dict[str, Any] = {"netlist": netlist, "title": sim.title} if netlist else {"title": sim.title}
+    doc.update(
+        {
+            "outputs": list(sim.outputs),
+            "units": list(sim.units),
+            "time": sim.time.tolist(),
+            "values": {name: sim.values[:, j].tolist() for j, name in enumerate(sim.outputs)},
+            "method": sim.method,
+            "setting": sim.setting,
+            "seconds": sim.seconds,
+            "status": sim.status,
+            "stats": dict(sim.stats),
+            "horizon": {"tstep": sim.horizon.tstep, "tstop": sim.horizon.tstop, "source": sim.horizon.source},
+        }
+    )
+    return doc
 
 
-def simulation_summary(result: Any, names: Sequence[str]) -> str:
+def simulation_summary(sim: Any) -> str:
     """Per output: value at the end, minimum and maximum (the samples go to --csv or JSON)."""
-    width = max(8, *(len(n) for n in names)) if names else 8
+    from .display import simulation_rows
+
+    rows = simulation_rows(sim)
+    width = max(8, *(len(r[0]) for r in rows)) if rows else 8
     lines = [f"  {'output':<{width}} {'final':>14} {'min':>14} {'max':>14}"]
-    for j, name in enumerate(names):
-        column = result.outputs[:, j]
-        lines.append(f"  {name:<{width}} {column[-1]:>14.8g} {column.min():>14.8g} {column.max():>14.8g}")
+    lines += [f"  {name:<{width}} {final:>14} {low:>14} {high:>14}" for name, final, low, high in rows]
     lines.append("(the samples: --csv FILE or --format json)")
     return "\n".join(lines) + "\n"
 
@@ -370,7 +388,7 @@ def bench_text(report: Any) -> str:
     ref = report.reference
     out = [
         report.title,
-        f"netlist: {report.netlist}; {report.nstates} states; horizon {report.horizon.tstop:g} s, "
+        f"netlist: {report.netlist}; {report.nstates} states; horizon {eng(report.horizon.tstop, 's')}, "
         f"scored at {report.points} grid steps",
         f"reference: {ref.method}, checked against {ref.check}: agreement {ref.agreement:.2g}",
         "",
@@ -436,16 +454,63 @@ def control_text(structure: Any, tfs: Sequence[Any]) -> str:
     return "\n".join(out) + "\n"
 
 
+def sweep_record_json(record: dict[str, Any]) -> str:
+    """One sweep case as one line of JSON (``sweep --format jsonl``), full precision."""
+    return json.dumps(_clean(record))
+
+
+#: Sweeps with more modes than this list them under each case instead of in columns.
+SWEEP_COLUMN_MODES = 6
+
+
+def _eigenvalue(re: float, im: float) -> str:
+    re, im = re + 0.0, im + 0.0  # no "-0"
+    return f"{re:.8g}" + (f"{'-' if im < 0 else '+'}{abs(im):.8g}j" if im else "")
+
+
 def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
-    """A table of eigenvalues per case."""
-    out = []
-    for case in cases:
-        params = ", ".join(f"{k}={v:g}" for k, v in case["params"].items())
+    """A table of eigenvalues per case: parameters in the user's spelling, modes in tracked order.
+
+    Column λk follows one mode from case to case (see
+    :func:`netlistdyn.sweep.track`); values in 1/s. Sweeps of more than
+    :data:`SWEEP_COLUMN_MODES` modes list the eigenvalues under each case.
+    """
+    from .display import eng
+
+    names = list(cases[0]["params"]) if cases else []
+    modes = max((len(c.get("eigenvalues", ())) for c in cases), default=0)
+    columns = modes <= SWEEP_COLUMN_MODES
+    head = ["case", *names, "stability", *(f"λ{k + 1} [1/s]" for k in range(modes if columns else 0))]
+    table: list[list[str]] = []
+    below: dict[int, str] = {}
+    for number, case in enumerate(cases):
+        cells = [str(case.get("index", number) + 1), *(eng(case["params"][k], "", 6) for k in names)]
         if "error" in case:
-            out.append(f"{params}: {case['error']}")
+            below[len(table)] = f"error: {case['error']}"
+            table.append(cells)
             continue
-        values = ", ".join(f"{complex(*e):.8g}" for e in case["eigenvalues"])
-        out.append(f"{params}: {case['stability']}; eigenvalues {values}")
+        values = [_eigenvalue(re, im) for re, im in case["eigenvalues"]]
+        table.append([*cells, case["stability"], *(values if columns else [])])
+        if not columns:
+            below[len(table) - 1] = "eigenvalues: " + ", ".join(values)
+    widths = [max(len(h), *(len(r[k]) for r in table if len(r) > k)) for k, h in enumerate(head)]
+    numeric = 1 + len(names)  # case and parameter columns align right
+
+    def line(cells: Sequence[str]) -> str:
+        parts = [
+            c.rjust(w) if k < numeric else c.ljust(w)
+            for k, (c, w) in enumerate(zip(cells, widths, strict=False))
+        ]
+        return "  ".join(parts).rstrip()
+
+    out = [line(head)]
+    for k, row in enumerate(table):
+        if k in below and len(row) == numeric:
+            out.append(line(row) + "  " + below[k])
+            continue
+        out.append(line(row))
+        if k in below:
+            out.append("      " + below[k])
     return "\n".join(out) + "\n"
 
 
@@ -467,7 +532,9 @@ def symbolic_text(model: Any) -> str:
     """The non-zero symbolic entries of each matrix, labelled by state, input and output."""
     import sympy
 
-    symbols = ", ".join(f"{name} = {value:g}" for name, (_, value) in model.symbols.items())
+    from .display import element_value
+
+    symbols = ", ".join(element_value(name, value) for name, (_, value) in model.symbols.items())
     out = ["", f"symbolic model (sympy; netlist values: {symbols or 'none, all substituted'})"]
     labels = {
         "A": (model.states, model.states),

@@ -313,6 +313,9 @@ def simulate_foh(
         ``(len(times), nstates)`` states.
     """
     times = np.asarray(times, dtype=float)
+    if model.nstates == 0:  # no dynamics: y = D u (+ D1 u') at the requested times, nothing to step
+        xs = np.zeros((times.size, 0))
+        return _outputs_at(model, signals, times, xs), xs
     prop = FohPropagator(model.A, model.B)
     if prop.modal:
         # An unstable model may overflow: the non-finite result is reported by the caller.

@@ -15,8 +15,9 @@ for a running one) when a sweep outgrows one machine.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,8 +38,8 @@ def _values(name: str, text: str) -> list[float]:
         if parts[0] == "log":
             if a <= 0 or b <= 0:
                 raise UsageError(f"--param {name}={text}: log ranges need positive ends")
-            return list(np.logspace(np.log10(a), np.log10(b), int(count)))
-        return list(np.linspace(a, b, int(count)))
+            return [float(v) for v in np.logspace(np.log10(a), np.log10(b), int(count))]
+        return [float(v) for v in np.linspace(a, b, int(count))]
     out = []
     for item in text.split(","):
         value = parse_number(item.strip())
@@ -48,14 +49,28 @@ def _values(name: str, text: str) -> list[float]:
     return out
 
 
-def expand_cases(items: Sequence[str]) -> list[dict[str, float]]:
-    """Cases (parameter dictionaries) from ``--param`` values."""
+def _value_list(name: str, values: str | float | Sequence[float | str]) -> list[float]:
+    if isinstance(values, str):
+        return _values(name, values.strip())
+    if isinstance(values, int | float):
+        return [float(values)]
+    return [v for item in values for v in _value_list(name, item)]
+
+
+def expand_cases(items: Sequence[str] | Mapping[str, Any]) -> list[dict[str, float]]:
+    """Cases (parameter dictionaries) from ``--param`` values.
+
+    Parameters
+    ----------
+    items : sequence of str or mapping
+        ``["R1=1,10", "C1=log:1u:1m:4"]`` as on the command line, or
+        ``{"R1": [1, 10], "C1": "log:1u:1m:4"}``. Names keep the user's
+        spelling (the parser matches ``.param`` names case-insensitively).
+    """
     lists: dict[str, list[float]] = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        if not sep or not name.strip():
-            raise UsageError(f"--param {item!r}: expected NAME=VALUES")
-        lists[name.strip().lower()] = _values(name.strip(), text.strip())
+    pairs = items.items() if isinstance(items, Mapping) else [_split_item(item) for item in items]
+    for name, values in pairs:
+        lists[name.strip()] = _value_list(name.strip(), values)
     if not lists:
         raise UsageError("sweep needs at least one --param NAME=VALUES")
     lengths = {len(v) for v in lists.values()}
@@ -66,12 +81,56 @@ def expand_cases(items: Sequence[str]) -> list[dict[str, float]]:
     return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(lists[k] for k in keys))]
 
 
+def _split_item(item: str) -> tuple[str, str]:
+    name, sep, text = item.partition("=")
+    if not sep or not name.strip():
+        raise UsageError(f"--param {item!r}: expected NAME=VALUES")
+    return name, text
+
+
 #: ``--scheduler`` values that mean "this machine's process pool".
 LOCAL_SCHEDULERS = ("processes", "local")
 
 
+@dataclass(frozen=True)
+class SweepSource:
+    """The netlist every case re-reads: its text, read once, and the name used in messages.
+
+    Workers receive the text, so they need not see the file (``.include``
+    still resolves relative to ``path``).
+    """
+
+    path: str
+    text: str
+
+    @classmethod
+    def read(cls, path: str) -> SweepSource:
+        """Read ``path`` (a ``NetlistError`` names it when it cannot be read)."""
+        from .errors import SourceLocation
+
+        try:
+            with open(path, encoding="utf-8") as handle:
+                return cls(path, handle.read())
+        except OSError as exc:
+            raise NetlistError(
+                f"cannot read netlist: {exc.strerror or exc}", SourceLocation(path, 0)
+            ) from None
+        except UnicodeDecodeError:
+            raise NetlistError("cannot read netlist: not a text file", SourceLocation(path, 0)) from None
+
+    def parse(self, params: Mapping[str, float]) -> Any:
+        """The netlist with ``params`` applied."""
+        from .parser import parse_text
+
+        return parse_text(self.text, self.path, params)
+
+
 def _one_case(
-    formulation: Formulation | None, path: str, params: dict[str, float], outputs: list[str] | None = None
+    formulation: Formulation | None,
+    source: SweepSource | str,
+    params: dict[str, float],
+    outputs: list[str] | None = None,
+    eig: str = "auto",
 ) -> dict[str, Any]:
     """Re-read the netlist with ``params`` and re-evaluate it on the compiled case's tree.
 
@@ -80,50 +139,128 @@ def _one_case(
     """
     from .analysis import analyze_eigenvalues
     from .formulate import compile_netlist, recompile
-    from .parser import parse_file
 
+    if isinstance(source, str):
+        source = SweepSource.read(source)
     try:
-        netlist = parse_file(path, params)
+        netlist = source.parse(params)
         model = compile_netlist(netlist, outputs) if formulation is None else recompile(formulation, netlist)
     except NetlistError as exc:
         return {"params": params, "error": str(exc)}
-    eig = analyze_eigenvalues(model.A_sparse)
+    analysis = analyze_eigenvalues(model.A_sparse, eig)
     return {
         "params": params,
-        "eigenvalues": [[m.value.real, m.value.imag] for m in eig.modes],
-        "stability": eig.verdict,
-        "stiffness_ratio": eig.stiffness_ratio,
+        "eigenvalues": [[m.value.real, m.value.imag] for m in analysis.modes],
+        "stability": analysis.verdict,
+        "stiffness_ratio": analysis.stiffness_ratio,
+        "eigenvalues_complete": analysis.complete,
     }
 
 
 def _first_formulation(
-    path: str, cases: list[dict[str, float]], outputs: list[str] | None
+    source: SweepSource, cases: list[dict[str, float]], outputs: list[str] | None
 ) -> Formulation | None:
     """Compile the first case that compiles (its normal tree serves every case)."""
     from .formulate import formulate
-    from .parser import parse_file
 
     for params in cases:
         try:
-            return formulate(parse_file(path, params), outputs)
+            return formulate(source.parse(params), outputs)
         except NetlistError:
             continue
     return None
 
 
-def run_sweep(
-    path: str,
+def track(
+    previous: Sequence[Sequence[float]] | None, current: Sequence[Sequence[float]]
+) -> list[list[float]]:
+    """Order ``current``'s eigenvalues so that each follows the nearest of ``previous``'s.
+
+    The first case (or one whose count differs from its predecessor's) keeps
+    the analysis' order: decreasing real part, then decreasing imaginary
+    part. Otherwise the order is the assignment of least total distance
+    (``scipy.optimize.linear_sum_assignment``), so column k of a sweep
+    table follows one mode through the cases as its parameter moves.
+    """
+    values = np.array([complex(re, im) for re, im in current], dtype=complex)
+    order = sorted(range(values.size), key=lambda k: (-values[k].real, -values[k].imag))
+    if previous is not None and len(previous) == values.size and values.size:
+        from scipy.optimize import linear_sum_assignment
+
+        before = np.array([complex(re, im) for re, im in previous], dtype=complex)
+        cost = np.abs(before[:, None] - values[None, :])
+        _, order_array = linear_sum_assignment(cost)
+        order = [int(k) for k in order_array]
+    return [[values[k].real, values[k].imag] for k in order]
+
+
+def iter_sweep(
+    path: str | SweepSource,
     cases: list[dict[str, float]],
     outputs: list[str] | None,
     jobs: int,
     scheduler: str = "processes",
+    eig: str = "auto",
+) -> Iterator[dict[str, Any]]:
+    """Yield each case's result in case order, as soon as it and the ones before it are done.
+
+    Eigenvalues are tracked from case to case (:func:`track`). A caller that
+    writes each result as it comes (``sweep --format jsonl``) keeps every
+    finished case when the sweep is stopped. Parameters as for
+    :func:`run_sweep`.
+    """
+    source = path if isinstance(path, SweepSource) else SweepSource.read(path)
+    formulation = _first_formulation(source, cases, outputs)
+    previous: list[list[float]] | None = None
+    for index, record in enumerate(_results(formulation, source, cases, outputs, jobs, scheduler, eig)):
+        if "eigenvalues" in record:
+            record = {**record, "eigenvalues": track(previous, record["eigenvalues"])}
+            previous = record["eigenvalues"]
+        yield {"index": index, **record}
+
+
+def _results(
+    formulation: Formulation | None,
+    source: SweepSource,
+    cases: list[dict[str, float]],
+    outputs: list[str] | None,
+    jobs: int,
+    scheduler: str,
+    eig: str,
+) -> Iterator[dict[str, Any]]:
+    if scheduler in LOCAL_SCHEDULERS:
+        if jobs <= 1 or len(cases) == 1:
+            yield from (_one_case(formulation, source, case, outputs, eig) for case in cases)
+            return
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            yield from pool.map(
+                _one_case,
+                itertools.repeat(formulation),
+                itertools.repeat(source),
+                cases,
+                itertools.repeat(outputs),
+                itertools.repeat(eig),
+                chunksize=1,
+            )
+        return
+    yield from _run_on_dask(scheduler, jobs, formulation, source, cases, outputs, eig)
+
+
+def run_sweep(
+    path: str | SweepSource,
+    cases: list[dict[str, float]],
+    outputs: list[str] | None,
+    jobs: int,
+    scheduler: str = "processes",
+    eig: str = "auto",
+    progress: Callable[[], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Compile once, then re-evaluate and analyse every case.
 
     Parameters
     ----------
-    path : str
-        Netlist file.
+    path : str or SweepSource
+        Netlist file (or its text, read once).
     cases : list of dict
         ``.param`` values per case (see :func:`expand_cases`).
     outputs : list of str, optional
@@ -134,41 +271,36 @@ def run_sweep(
         ``"processes"`` (this machine), ``"dask"`` (a local Dask cluster of
         ``jobs`` workers) or a Dask scheduler address such as
         ``tcp://10.0.0.5:8786`` for a cluster.
+    eig : {"auto", "all", "extreme"}
+        Which eigenvalues each case computes (as ``analyze --eig``).
+    progress : callable, optional
+        Called once per finished case.
 
     Returns
     -------
     list of dict
-        Per case: params, eigenvalues (1/s), stability verdict, stiffness
-        ratio — or the error that case raised.
+        Per case, in order: index, params, eigenvalues (1/s, tracked from
+        case to case), stability verdict, stiffness ratio — or the error
+        that case raised.
     """
-    formulation = _first_formulation(path, cases, outputs)
-    if scheduler in LOCAL_SCHEDULERS:
-        if jobs <= 1 or len(cases) == 1:
-            return [_one_case(formulation, path, case, outputs) for case in cases]
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            chunk = max(1, len(cases) // (4 * jobs))
-            return list(
-                pool.map(
-                    _one_case,
-                    itertools.repeat(formulation),
-                    itertools.repeat(path),
-                    cases,
-                    itertools.repeat(outputs),
-                    chunksize=chunk,
-                )
-            )
-    return _run_on_dask(scheduler, jobs, formulation, path, cases, outputs)
+    out = []
+    for record in iter_sweep(path, cases, outputs, jobs, scheduler, eig):
+        out.append(record)
+        if progress is not None:
+            progress()
+    return out
 
 
 def _run_on_dask(
     scheduler: str,
     jobs: int,
     formulation: Formulation | None,
-    path: str,
+    source: SweepSource,
     cases: list[dict[str, float]],
     outputs: list[str] | None,
-) -> list[dict[str, Any]]:
-    """The same cases as Dask tasks; workers must see ``path`` (a shared file system)."""
+    eig: str,
+) -> Iterator[dict[str, Any]]:
+    """The same cases as Dask tasks (the netlist's text travels with them)."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -183,23 +315,26 @@ def _run_on_dask(
             ) as cluster,
             Client(cluster) as client,
         ):
-            return _dask_map(client, formulation, path, cases, outputs)
+            yield from _dask_map(client, formulation, source, cases, outputs, eig)
+        return
     try:
         client = Client(scheduler, timeout="10s")
     except OSError as exc:
         raise UsageError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({exc})") from None
     with client:
-        return _dask_map(client, formulation, path, cases, outputs)
+        yield from _dask_map(client, formulation, source, cases, outputs, eig)
 
 
 def _dask_map(
     client: Any,
     formulation: Formulation | None,
-    path: str,
+    source: SweepSource,
     cases: list[dict[str, float]],
     outputs: list[str] | None,
-) -> list[dict[str, Any]]:
+    eig: str,
+) -> Iterator[dict[str, Any]]:
     shared = client.scatter(formulation, broadcast=True) if formulation is not None else None
     n = len(cases)
-    futures = client.map(_one_case, [shared] * n, [path] * n, cases, [outputs] * n, pure=False)
-    return client.gather(futures)
+    futures = client.map(_one_case, [shared] * n, [source] * n, cases, [outputs] * n, [eig] * n, pure=False)
+    for future in futures:
+        yield future.result()

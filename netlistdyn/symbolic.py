@@ -22,10 +22,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import sympy
-from sympy.polys.matrices import DomainMatrix
 
 from .errors import NetlistError, UsageError
+
+try:
+    import sympy
+    from sympy.polys.matrices import DomainMatrix
+except ImportError:  # sympy is the optional "symbolic" extra
+    raise UsageError(
+        "--symbolic needs sympy, which is not installed: "
+        "pip install 'netlistdyn[symbolic]' (or pip install sympy)"
+    ) from None
 from .formulate import (
     Formulation,
     _potential_rows,

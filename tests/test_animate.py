@@ -63,7 +63,7 @@ def test_dipc_gif_has_the_requested_frames_and_size(tmp_path: Path) -> None:
         assert gif.size == (320, 200)
         assert gif.n_frames == 11  # 0.5 s at 20 frames per second, both ends included
     doc = json.loads(result.stdout)
-    assert doc["outputs"]["angle(r1)"][0] == pytest.approx(-0.01, rel=1e-12)
+    assert doc["values"]["angle(r1)"][0] == pytest.approx(-0.01, rel=1e-12)
 
 
 def _colour(hex_colour: str) -> np.ndarray:
@@ -141,10 +141,8 @@ def test_frames_are_the_reported_simulation(tmp_path: Path) -> None:
     assert plain.exit_code == 0 and with_movie.exit_code == 0, with_movie.output
     a, b = json.loads(plain.stdout), json.loads(with_movie.stdout)
     assert a["time"] == b["time"]
-    peak = max(abs(v) for v in a["outputs"]["angle(rod)"])
-    diff = max(
-        abs(p - q) for p, q in zip(a["outputs"]["angle(rod)"], b["outputs"]["angle(rod)"], strict=True)
-    )
+    peak = max(abs(v) for v in a["values"]["angle(rod)"])
+    diff = max(abs(p - q) for p, q in zip(a["values"]["angle(rod)"], b["values"]["angle(rod)"], strict=True))
     # The movie adds displacement outputs (and their integrator states); the angle is unchanged
     # up to rounding of the exact method (~1e-13 of the peak).
     assert diff <= 1e-10 * peak

@@ -68,7 +68,7 @@ def test_sweep_reproduces_the_seed_case_tables() -> None:
     )
     assert result.exit_code == 0, result.output
     cases = json.loads(result.stdout)["cases"]
-    assert [c["params"] for c in cases] == [{"r1": 1e-3, "r2": 1e-3}, {"r1": 100.0, "r2": 100.0}]
+    assert [c["params"] for c in cases] == [{"R1": 1e-3, "R2": 1e-3}, {"R1": 100.0, "R2": 100.0}]
     match_spectra(
         [complex(*e) for e in cases[1]["eigenvalues"]],
         [-100.0, -99.979998, -0.0100010 + 1.00005j, -0.0100010 - 1.00005j],
@@ -81,7 +81,7 @@ def test_sweep_ranges() -> None:
 
     cases = expand_cases(["R1=log:1e-6:1e3:10"])
     assert (
-        len(cases) == 10 and cases[0]["r1"] == pytest.approx(1e-6) and cases[-1]["r1"] == pytest.approx(1e3)
+        len(cases) == 10 and cases[0]["R1"] == pytest.approx(1e-6) and cases[-1]["R1"] == pytest.approx(1e3)
     )
     assert len(expand_cases(["a=1,2", "b=3,4,5"])) == 6  # unequal lengths: every combination
 

@@ -274,7 +274,7 @@ def test_dipc_from_the_notes_angles_matches_lsim() -> None:
         DIPC,
     )
     t = np.array(doc["time"])
-    ours = np.column_stack([doc["outputs"][name] for name in DIPC.split(",")])
+    ours = np.column_stack([doc["values"][name] for name in DIPC.split(",")])
     A, B = dipc_matrices()
     u = input_signals(parse_file(NETLISTS / "dipc.cir"), t[1] - t[0], t[-1])(t)[:, 0]
     _, y, _ = lsim((A, B, np.eye(6), np.zeros((6, 1))), u, t, X0=[0, -0.01, -0.02, 0, 0, 0], interp=True)
@@ -326,7 +326,7 @@ def test_dipc_at_60_s_warns() -> None:
 def test_small_swing_does_not_warn() -> None:
     # The hanging pendulum pushed by 1 N swings well inside 0.14 rad.
     doc = simulate_json("blocks_pendulum.cir", "--output", "angle(rod)")
-    assert max(abs(v) for v in doc["outputs"]["angle(rod)"]) < 0.14
+    assert max(abs(v) for v in doc["values"]["angle(rod)"]) < 0.14
     assert doc["warnings"] == []
 
 

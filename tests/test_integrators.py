@@ -173,12 +173,12 @@ def test_exact_at_many_times_matches_mpmath(R: float) -> None:
     each requested time from the grid point before it (vectorised); with 10x more times than
     grid points it must stay exact (EXACT_RTOL against the 40-digit reference, at 25 of the
     20 001 times)."""
-    from netlistdyn import simulate
+    from netlistdyn.simulate import MODAL_GRID_POINTS
 
     net = parse_file(NETLISTS / "circuit1.cir", {"R1": R, "R2": R})
     model = compile_file("circuit1.cir", {"R1": R, "R2": R}, ["v(a)", "i(L1)"])
     times = np.linspace(0.0, 10.0, 20_001)
-    assert times.size > simulate.MODAL_GRID_POINTS
+    assert times.size > MODAL_GRID_POINTS
     result = integrators.run(model, input_signals(net, 1e-3, 10.0), times, "exact")
     assert result.ok
     picks = np.unique(np.r_[0, np.random.default_rng(3).integers(0, times.size, 23), times.size - 1])
@@ -194,17 +194,17 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytes
     ~1e-12 measured by benchmarks/bench_foh.py); for SIN and EXP the
     vectorised path is exact and the stepwise one follows them by linear pieces within
     SMOOTH_INPUT_RTOL = 1e-9 (4e-10 measured)."""
-    from netlistdyn import simulate
+    from netlistdyn.simulate import FohPropagator, simulate_foh
 
     net = parse_file(NETLISTS / name)
     model = compile_file(name)
     assert net.tran is not None
     signals = input_signals(net, net.tran.tstep, net.tran.tstop)
     times = np.sort(np.r_[0.0, np.random.default_rng(5).uniform(0, net.tran.tstop, 20_000)])
-    fast, _ = simulate.simulate_foh(model, signals, times)
+    fast, _ = simulate_foh(model, signals, times)
     # The stepwise path: through every requested time with Van Loan's augmented exponential.
-    monkeypatch.setattr(simulate.FohPropagator, "modal", property(lambda self: False))
-    slow, _ = simulate.simulate_foh(model, signals, times)
+    monkeypatch.setattr(FohPropagator, "modal", property(lambda self: False))
+    slow, _ = simulate_foh(model, signals, times)
     assert rel_err(fast, slow) <= 2e-9
 
 

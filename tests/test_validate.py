@@ -89,7 +89,7 @@ def test_netlist_validates(name: str, args: list[str]) -> None:
     assert code == 0, doc
     assert doc["passed"] and doc["ngspice"]["ok"]
     assert "reltol" in doc["ngspice"]["settings"]  # the report says which settings were used
-    for output in doc["outputs"]:
+    for output in doc["comparisons"]:
         assert output["max_rel_error"] < ACCEPT_RTOL, output
 
 
