@@ -18,6 +18,12 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+# The pipeline stages named like the API's functions are imported first: importing a submodule
+# binds it as an attribute of the package, so it must happen before the functions take the names
+# (reach the stages by ``from netlistdyn.simulate import ...``).
+from . import simulate as _simulate_stage  # noqa: F401
+from . import sweep as _sweep_stage  # noqa: F401
+from . import validate as _validate_stage  # noqa: F401
 from .api import (
     NetlistSource,
     Simulation,

@@ -444,3 +444,13 @@ def test_electrical_plots_are_not_labelled_with_mechanical_units(monkeypatch: py
     assert any(t.endswith(" V") for t in ticks[0]) and not any("m/s" in t for t in ticks[0])
     assert any(t.endswith("m/s") for t in ticks[1])
     assert [t.get_text() for t in electrical.get_xticklabels()][-1].endswith("s")
+
+
+def test_top_level_functions_survive_lazy_imports_of_the_stages() -> None:
+    """Importing a submodule binds it on the package: the stages named like the API functions are
+    imported before the functions take their names, so later imports do not shadow them."""
+    import importlib
+
+    for name in ("simulate", "sweep", "validate"):
+        importlib.import_module(f"netlistdyn.{name}")
+        assert callable(getattr(netlistdyn, name)), name
