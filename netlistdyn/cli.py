@@ -512,10 +512,10 @@ def validate(
 @path_option("--csv", "Write the outputs as CSV.", "csv_path")
 @path_option("--plot", "Write a plot (PNG, or the format of the file's extension: .svg, .pdf).")
 @path_option("--animate", "Animate a mechanical netlist into a .gif (or .mp4 with ffmpeg).")
-@click.option("--fps", type=POSITIVE, default=25.0, show_default=True, help="--animate: frames per second.")
+@click.option("--fps", type=NUMBER, default=25.0, show_default=True, help="--animate: frames per second.")
 @click.option(
     "--speed",
-    type=POSITIVE,
+    type=NUMBER,
     default=1.0,
     show_default=True,
     help="--animate: simulated seconds per second shown.",
