@@ -428,12 +428,17 @@ class Validation:
         Everything ``validate`` found: per-output errors
         (``report.comparisons``), ngspice's settings and run, both
         waveforms (``report.time``, ``report.ours``).
+    reference_accuracy : float
+        Bound on ngspice's accumulated trapezoidal phase error relative to
+        the amplitude of each oscillating mode (:func:`reference_accuracy`);
+        0 when no mode oscillates (ngspice's reltol sets the accuracy).
     """
 
     title: str
     passed: bool
     outputs: tuple[str, ...]
     report: Any
+    reference_accuracy: float = 0.0
 
     def __repr__(self) -> str:
         from .report import validation_text
@@ -485,7 +490,7 @@ def validation_pipeline(
     eig = analyze_eigenvalues(model.A_sparse)
     horizon = choose_horizon(parsed, eig, tstop, tstep)
     check_horizon(horizon)
-    settings = spice_settings_for(horizon, eig)
+    settings = spice_settings_for(horizon, eig, model.nstates)
     chosen = {k: v for k, v in (reference or {}).items() if v is not None}
     if chosen:
         settings = reference_settings(settings, chosen)
@@ -493,7 +498,36 @@ def validation_pipeline(
     report = _original_check(report, loaded, parsed, model, probes, eig, params, timeout)
     if pz:
         report = replace(report, poles=compare_poles(parsed, eig, probes))
-    return Validation(parsed.title, report.passed, tuple(c.name for c in report.comparisons), report)
+    bound = reference_accuracy(report.spice.settings, eig, horizon.tstop)
+    if bound > 0:
+        note = (
+            f"reference accuracy: ngspice's trapezoidal phase error at its maximum step is bounded by "
+            f"{bound:.1g} of each oscillating mode's amplitude over the horizon"
+        )
+        if bound > rtol:
+            note += f", more than rtol {rtol:g}: lower --ngspice-maxstep for a tighter reference"
+        report = replace(report, notes=(*report.notes, note))
+    return Validation(parsed.title, report.passed, tuple(c.name for c in report.comparisons), report, bound)
+
+
+def reference_accuracy(settings: Any, eig: Any, tstop: float) -> float:
+    """Bound on the trapezoidal rule's accumulated phase/growth error at ngspice's maximum step.
+
+    (|λ|h)²·|λ|T/12 for every oscillatory or growing mode over the time T it
+    lasts (five time constants, at most the horizon), with h the maximum step
+    (ngspice's own default tstop/50 when none is set); 0 when no mode
+    accumulates such an error (reltol then sets the accuracy). Relative to
+    each mode's amplitude.
+    """
+    step = settings.tmax if settings.tmax else tstop / 50
+    worst = 0.0
+    for mode in eig.modes if eig is not None else ():
+        lam = mode.value
+        if lam.imag or lam.real > 0:
+            span = min(tstop, 5.0 / -lam.real) if lam.real < 0 else tstop
+            rate = abs(lam)
+            worst = max(worst, (rate * step) ** 2 * rate * span / 12)
+    return worst
 
 
 def _original_check(

@@ -475,7 +475,7 @@ def validate(
 
             validation_plot(report, plot, signal_units(parse_file(netlist), result.outputs), result.title)
         if fmt == "json":
-            emit(to_json(validation_dict(report, result.title)), out)
+            emit(to_json(validation_dict(report, result.title, result.reference_accuracy)), out)
         else:
             emit(validation_text(report, result.title), out)
         return 0 if report.passed else EXIT_MISMATCH
@@ -823,7 +823,8 @@ def _stream(fmt: str, out: str | None) -> Iterator[Callable[[str], None] | None]
     if fmt != "jsonl":
         yield None
         return
-    handle = open(out, "w", encoding="utf-8") if out else sys.stdout  # noqa: SIM115
+    to_file = bool(out) and out != "-"  # "-" is stdout, as everywhere
+    handle = open(out, "w", encoding="utf-8") if to_file else sys.stdout  # type: ignore[arg-type]  # noqa: SIM115
     try:
 
         def write(line: str) -> None:
@@ -832,7 +833,7 @@ def _stream(fmt: str, out: str | None) -> Iterator[Callable[[str], None] | None]
 
         yield write
     finally:
-        if out:
+        if to_file:
             handle.close()
 
 

@@ -197,7 +197,7 @@ def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) ->
     return "\n".join(out) + "\n"
 
 
-def validation_dict(report: Any, title: str) -> dict[str, Any]:
+def validation_dict(report: Any, title: str, reference_accuracy: float | None = None) -> dict[str, Any]:
     """The JSON document for ``validate --format json``.
 
     ``outputs`` is the list of output names, as in ``analyze`` and
@@ -220,6 +220,7 @@ def validation_dict(report: Any, title: str) -> dict[str, Any]:
             "settings": spice.settings.describe(),
             "seconds": spice.seconds,
             "points": int(report.time.size),
+            **({} if reference_accuracy is None else {"phase_error_bound": reference_accuracy}),
         },
         "model_seconds": report.model_seconds,
         "outputs": [c.name for c in report.comparisons],

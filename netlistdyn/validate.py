@@ -35,8 +35,11 @@ GEAR_STIFFNESS = 1e3
 PHASE_RTOL = 1e-6
 #: ngspice's maximum step is at most 1/STEPS_PER_HORIZON of the horizon ...
 STEPS_PER_HORIZON = 2000
-#: ... and at least 1/MAX_STEPS of it, to bound its run time.
+#: ... and at least 1/MAX_STEPS of it, to bound its run time ...
 MAX_STEPS = 2_000_000
+#: ... and of steps × states (ngspice keeps every vector at every step: 1e5 points of the
+#: 100-section ladder, 200 states, took 0.83 GB), so mid-sized circuits finish.
+STEP_STATE_BUDGET = 10_000_000
 #: Largest model for which ngspice's .pz poles are compared.
 PZ_MAX_STATES = 6
 #: Agreement demanded between the model's transfer values and ngspice's op/ac on
@@ -167,7 +170,9 @@ def _time_scales(eig: EigenAnalysis | None) -> tuple[float, list[tuple[float, fl
     return fastest, accumulating
 
 
-def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSettings:
+def spice_settings_for(
+    horizon: Horizon, eig: EigenAnalysis | None, nstates: int | None = None
+) -> SpiceSettings:
     """Tight ngspice settings for a reference run.
 
     * reltol the first of :data:`VALIDATION_RELTOLS`, abstol 1e-15 A, vntol 1e-12 V;
@@ -178,7 +183,9 @@ def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSett
       :data:`PHASE_RTOL` for every oscillatory or growing mode over the time
       T it lasts (shared/README measured 67 % drift over 80 periods at
       ngspice's defaults), and at most 1/:data:`STEPS_PER_HORIZON` of the
-      horizon;
+      horizon, but at least the horizon over :data:`MAX_STEPS` and over
+      :data:`STEP_STATE_BUDGET` / ``nstates`` (default: the number of
+      eigenvalues), so that ngspice's memory stays bounded;
     * Gear where the stiffness ratio exceeds :data:`GEAR_STIFFNESS` and no
       mode oscillates with a quality factor above 2 (Gear damps
       oscillations), trapezoidal otherwise.
@@ -188,7 +195,8 @@ def spice_settings_for(horizon: Horizon, eig: EigenAnalysis | None) -> SpiceSett
     for rate, duration in accumulating:
         span = min(horizon.tstop, duration)
         tmax = min(tmax, math.sqrt(12 * PHASE_RTOL / (rate**3 * span)))
-    tmax = max(tmax, horizon.tstop / MAX_STEPS)
+    states = nstates if nstates is not None else len(eig.modes) if eig is not None else 0
+    tmax = max(tmax, horizon.tstop / min(MAX_STEPS, STEP_STATE_BUDGET / max(states, 1)))
     lightly_damped = any(
         m.value.imag and abs(m.value.imag) > 4 * abs(m.value.real) for m in (eig.modes if eig else ())
     )

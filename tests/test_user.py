@@ -454,3 +454,41 @@ def test_top_level_functions_survive_lazy_imports_of_the_stages() -> None:
     for name in ("simulate", "sweep", "validate"):
         importlib.import_module(f"netlistdyn.{name}")
         assert callable(getattr(netlistdyn, name)), name
+
+
+# --- validate's reference settings ------------------------------------------------------------
+
+
+def test_reference_settings_and_their_accuracy_bound() -> None:
+    from netlistdyn.api import reference_accuracy, reference_settings
+    from netlistdyn.spice import SpiceSettings
+
+    base = SpiceSettings(tstep=1e-6, tstop=1.0, tmax=1e-4, reltol=1e-9)
+    chosen = reference_settings(base, {"reltol": 1e-6, "maxstep": 1e-7})
+    assert (chosen.reltol, chosen.tmax, chosen.tstep) == (1e-6, 1e-7, 1e-7)
+    # Circuit 1 with R = 100: λ = -0.01 ± 0.99995j, |λ| = 1 rad/s, lasting 5/0.01 = 500 s > 1 s.
+    analysis = netlistdyn.eigenvalues(netlistdyn.compile(CIRCUIT1, params={"R1": 100, "R2": 100}))
+    bound = reference_accuracy(base, analysis, 1.0)
+    assert bound == pytest.approx((1e-4) ** 2 * 1.0 / 12, rel=1e-6)
+    # Halving the step quarters the bound (second order).
+    assert reference_accuracy(reference_settings(base, {"maxstep": 5e-5}), analysis, 1.0) == pytest.approx(
+        bound / 4, rel=1e-9
+    )
+    real_only = netlistdyn.eigenvalues(netlistdyn.compile(CIRCUIT1))
+    assert reference_accuracy(base, real_only, 1.0) == 0.0
+
+
+def test_validate_takes_the_users_reference_settings() -> None:
+    from netlistdyn.spice import ngspice_missing
+
+    if ngspice_missing():
+        pytest.skip("ngspice is not installed")
+    doc = _json_of(
+        [
+            *("validate", str(CIRCUIT1), "--param", "R1=100", "--param", "R2=100", "--tstop", "2"),
+            *("--no-pz", "--ngspice-reltol", "1u", "--ngspice-maxstep", "1m"),
+        ]
+    )
+    assert "reltol=1e-06" in doc["ngspice"]["settings"] and " 0 0.001 uic" in doc["ngspice"]["settings"]
+    assert doc["ngspice"]["phase_error_bound"] == pytest.approx((1e-3) ** 2 * 2.0 / 12, rel=1e-3)
+    assert any("reference accuracy" in note for note in doc["notes"])
