@@ -545,7 +545,8 @@ def _original_check(
 
     from .validate import with_original_check
 
-    overrides = to_numbers(params)
+    # ngspice's alterparam matches the lower-case names ngspice gives parameters.
+    overrides = {k.lower(): v for k, v in to_numbers(params).items()}
     if loaded.text is None:
         return with_original_check(report, loaded.name, parsed, model, probes, eig, overrides, timeout)
     with tempfile.TemporaryDirectory() as folder:

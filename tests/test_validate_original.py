@@ -62,7 +62,7 @@ def _patch_reader(monkeypatch: pytest.MonkeyPatch, change) -> None:
 
 
 def _transient_passes(report: dict) -> bool:
-    return all(o["max_rel_error"] <= report["rtol"] for o in report["outputs"])
+    return all(o["max_rel_error"] <= report["rtol"] for o in report["comparisons"])
 
 
 def test_faithful_reading_passes() -> None:
