@@ -180,12 +180,17 @@ def load_prepared(
     coordinates: str | None,
     ics: tuple[str, ...] = (),
     extra: tuple[str, ...] = (),
+    parsed: Any = None,
 ) -> tuple[Any, Any]:
-    """Parse and compile for ``--coordinates`` and ``--ic`` (see :mod:`netlistdyn.coordinates`)."""
+    """Parse (unless ``parsed`` is given) and compile for ``--coordinates`` and ``--ic``.
+
+    See :mod:`netlistdyn.coordinates`; ``extra`` are hidden outputs a view needs.
+    """
     from .coordinates import prepare
     from .parser import parse_file
 
-    parsed = parse_file(netlist, parse_param_overrides(params))
+    if parsed is None:
+        parsed = parse_file(netlist, parse_param_overrides(params))
     prepared = prepare(parsed, list(outputs) or None, coordinates, ics, extra)
     _print_warnings(prepared.full.info.warnings)
     return parsed, prepared
@@ -578,7 +583,7 @@ def simulate(
 
             view = animation_options(animate, fps, speed, frame_size, geometry)
             extra += position_variables(parsed)
-        parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra))
+        parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra), parsed)
         full = prepared.full
         with progress.bar("simulate", 100, quiet, unit="%") as bar:
             run = simulation_pipeline(
