@@ -361,7 +361,7 @@ def analyze(
                 doc["coordinates"] = change_dict(change)
             emit(to_json(doc), out)
         else:
-            text = text_report(model, analysis, netlist)
+            text = text_report(model, analysis, netlist, parsed)
             if change is not None:
                 from .coordinates import change_text
 

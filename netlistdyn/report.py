@@ -136,12 +136,18 @@ def _unit_of_state(name: str) -> str:
     }.get(name.split("(", 1)[0].rsplit(".", 1)[-1], "")  # plant.q(C1) after connect
 
 
-def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str) -> str:
-    """The human-readable ``analyze`` report."""
+def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str, netlist: Any = None) -> str:
+    """The human-readable ``analyze`` report (``netlist``, when given, tells V from m/s in v(...) states)."""
+    from .display import signal_units
+
+    told = dict(zip(model.states, signal_units(netlist, model.states), strict=True)) if netlist else {}
+
+    def unit(state: str) -> str:
+        return told.get(state) or _unit_of_state(state)
+
     out = [f"{model.title}", f"netlist: {path}", ""]
     out.append(
-        f"states ({model.nstates}): "
-        + (", ".join(f"{s} [{_unit_of_state(s)}]" for s in model.states) or "none")
+        f"states ({model.nstates}): " + (", ".join(f"{s} [{unit(s)}]" for s in model.states) or "none")
     )
     out.append(f"inputs ({model.ninputs}): " + (", ".join(model.inputs) or "none"))
     out.append(f"outputs ({model.noutputs}): " + (", ".join(model.outputs) or "none"))

@@ -359,7 +359,7 @@ def test_stopped_jsonl_sweep_keeps_finished_cases(tmp_path: Path) -> None:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
     )
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + 240  # generous: a loaded CI machine starts Python slowly
     while time.monotonic() < deadline:
         if target.exists() and target.read_text().count("\n") >= 3:
             break
@@ -492,3 +492,17 @@ def test_validate_takes_the_users_reference_settings() -> None:
     assert "reltol=1e-06" in doc["ngspice"]["settings"] and " 0 0.001 uic" in doc["ngspice"]["settings"]
     assert doc["ngspice"]["phase_error_bound"] == pytest.approx((1e-3) ** 2 * 2.0 / 12, rel=1e-3)
     assert any("reference accuracy" in note for note in doc["notes"])
+
+
+def test_state_units_come_from_the_netlist() -> None:
+    """A velocity-like state v(...) is in V on a circuit and in m/s on a mechanical node."""
+    electrical = CliRunner().invoke(
+        main, ["analyze", str(CIRCUIT1), "--coordinates", "v(a),i(L1)", "--eig", "none"]
+    )
+    assert electrical.exit_code == 0, electrical.output
+    assert "v(a) [V], i(L1) [A]" in electrical.stdout
+    mechanical = CliRunner().invoke(
+        main, ["analyze", str(NETLISTS / "two_blocks.cir"), "--coordinates", "x(b1),x(b2),v(b1),v(b2)"]
+    )
+    assert mechanical.exit_code == 0, mechanical.output
+    assert "v(b1) [m/s]" in mechanical.stdout and "x(b1) [m]" in mechanical.stdout
