@@ -356,7 +356,29 @@ def _unresolved_zeros(modes: list[Mode]) -> list[Mode]:
     ]
 
 
-def analyze_eigenvalues(a: sp.sparray | np.ndarray, which: str = "auto") -> EigenAnalysis:
+def _cover_data_error(modes: list[Mode], a: np.ndarray, data_error: float) -> list[Mode]:
+    """Widen each error estimate to data_error / s (s = |yᴴx| / (‖y‖‖x‖)), then re-zero small parts.
+
+    ``data_error`` is a normwise perturbation the matrix itself may carry
+    (for instance from a model reduction): first-order perturbation theory
+    moves a simple eigenvalue by up to data_error / s.
+    """
+    w, vl, vr = _eig(a)
+    norms = np.linalg.norm(vl, axis=0) * np.linalg.norm(vr, axis=0)
+    s = np.abs(np.einsum("ij,ij->j", vl.conj(), vr)) / norms
+    out = []
+    for m in modes:
+        k = int(np.argmin(np.abs(w - m.value)))
+        err = max(m.abs_error, data_error / s[k] if s[k] > 0 else math.inf)
+        re = 0.0 if abs(m.value.real) <= err else m.value.real
+        im = 0.0 if abs(m.value.imag) <= err else m.value.imag
+        out.append(Mode(complex(re, im), err))
+    return out
+
+
+def analyze_eigenvalues(
+    a: sp.sparray | np.ndarray, which: str = "auto", data_error: float = 0.0
+) -> EigenAnalysis:
     """Eigenvalues of A with stability verdict, stiffness ratio and trust warnings.
 
     Parameters
@@ -366,6 +388,10 @@ def analyze_eigenvalues(a: sp.sparray | np.ndarray, which: str = "auto") -> Eige
     which : {"auto", "all", "extreme"}
         ``auto``: all eigenvalues up to :data:`DENSE_LIMIT` states, extreme
         ones above.
+    data_error : float
+        Normwise error (1/s) that the entries of ``a`` already carry, e.g.
+        from a model reduction (:func:`netlistdyn.control.minimal_realisation`);
+        every eigenvalue's error estimate is widened to cover it.
 
     Returns
     -------
@@ -377,6 +403,8 @@ def analyze_eigenvalues(a: sp.sparray | np.ndarray, which: str = "auto") -> Eige
     if complete:
         dense = a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
         modes, method = _dense_modes(dense) if n else ([], "no states")
+        if data_error > 0 and n:
+            modes = _cover_data_error(modes, dense, data_error)
     else:
         modes, method = _sparse_modes(a)
     modes.sort(key=lambda m: (-m.value.real, -m.value.imag))

@@ -309,6 +309,7 @@ def analyze(
             parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         bar.update()
         notes: list[str] = []
+        data_error = 0.0
         sym = None
         if symbolic or symbols is not None:
             if minimal:
@@ -320,19 +321,25 @@ def analyze(
         if minimal or control_report:
             from . import control
 
-            if model.nstates > 400:
-                raise UsageError("--control and --minimal are for models of up to 400 states")
-            structure = control.structure(model)
+            if model.nstates > control.CONTROL_STATE_LIMIT:
+                raise UsageError(
+                    f"--control and --minimal are for models of up to {control.CONTROL_STATE_LIMIT} states"
+                )
+            structure = control.structure(model) if control_report else None
             if minimal:
-                model, dropped = control.minimal(model)
-                gone = sorted({*structure.uncontrollable, *structure.unobservable}, key=abs)
+                full = model
+                model, reduction = control.minimal_realisation(model)
+                dropped = full.nstates - model.nstates
+                gone = sorted([*reduction.uncontrollable, *reduction.unobservable], key=abs)
                 notes.append(
                     f"--minimal dropped {dropped} state(s)"
                     + (f" (modes {', '.join(f'{v:.6g}' for v in gone)})" if dropped else "")
                 )
-                structure = control.structure(model)
+                if dropped:  # eigenvalue errors must cover the reduction's own backward error
+                    data_error = reduction.data_error
+                structure = control.structure(model) if control_report else None
             tfs = control.transfer_functions(model) if control_report else []
-        analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig)
+        analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig, data_error)
         bar.update()
         stages.close()
         forms = canonical_forms(model) if canonical else None

@@ -1,26 +1,424 @@
 """Control analysis of a compiled model: controllability, observability, minimal
-realisation and transfer functions.
+realisation, transfer functions and canonical forms.
 
-Controllability and observability use the PBH test: eigenvalue λ is
-uncontrollable when [A − λI, B] loses rank, unobservable when [A − λI; C]
-does. Rank is judged by the smallest singular value relative to the largest,
-with :data:`RANK_RTOL`. The Krylov ranks (of [B AB … Aⁿ⁻¹B] and its dual,
-columns normalised) are computed too and shown only when they disagree with
-PBH, which is the more reliable of the two for stiff models.
+Tolerance policy
+----------------
+Every rank decision here is invariant under diagonal scaling of the states,
+inputs and outputs (any choice of units) and under scaling of time (all time
+constants × 10^k), because each one is made on an equilibrated problem:
+
+* The eigenvalues come from :func:`netlistdyn.analysis.analyze_eigenvalues`
+  with their error estimates; eigenvalues closer than their errors form one
+  cluster (a repeated eigenvalue).
+* For each cluster λ the Hautus (PBH) matrix [A − λI, B] is equilibrated by
+  rows and columns (Curtis–Reid: the diagonal scaling that brings the
+  logarithms of the entries' magnitudes, with |A_kk| + |λ| on the diagonal,
+  closest to zero in the least-squares sense). The scaled problem is the
+  same whatever units the model is written in, and its rank is unchanged.
+* The left singular vectors of the scaled A − λI for its smallest singular
+  values span the left eigenspace; a mode is uncontrollable when the cosine
+  between such a vector and every scaled column of B, |wᴴb| / (‖w‖‖b‖), is
+  below ``max(RANK_RTOL, 100·n·eps / gap)``, gap being the next singular
+  value of the scaled A − λI relative to the largest (the eigenvector's own
+  rounding error). Observability is the dual test on [A − λI; C].
+* A Jordan chain shows one vector at a time, so the modes found are deflated
+  (projected out orthogonally in Curtis–Reid-scaled state coordinates) and
+  the test repeated on the rest until nothing more is found. ``minimal``
+  deflates with the same tests, so ``--minimal`` removes exactly the modes
+  that ``--control`` reports.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.signal as sig
+import scipy.sparse as sp
 
 from .model import CompileInfo, StateSpaceModel
 
-#: Relative singular-value threshold for numerical rank.
-RANK_RTOL = 1e-9
+EPS = float(np.finfo(float).eps)
+#: Smallest cosine tolerance of the PBH tests (scale-free: see the module docstring).
+RANK_RTOL = 1e-8
+#: Largest model for --control and --minimal (one SVD of the equilibrated A − λI per eigenvalue).
+CONTROL_STATE_LIMIT = 200
+#: Singular values of the equilibrated A − λI below this fraction of the largest span the eigenspace.
+NULL_RTOL = 1e-9
+
+
+# --- scale-free building blocks -----------------------------------------------------------------
+
+
+def _solve_log_system(system: sp.csr_array, rhs: np.ndarray) -> np.ndarray:
+    """Least-squares solution of a scaling problem in logarithms, with the gauge fixed at zero mean.
+
+    The normal equations are a graph Laplacian (singular along one constant
+    vector per connected part); a ridge of 1e-12 of its largest diagonal entry
+    picks the minimum-norm solution to that relative accuracy. One sparse LU.
+    """
+    import scipy.sparse.linalg as spla
+
+    normal = (system.T @ system).tocsc()
+    ridge = 1e-12 * float(normal.diagonal().max())
+    normal = normal + ridge * sp.identity(normal.shape[0], format="csc")
+    return np.asarray(spla.splu(normal).solve(system.T @ rhs))
+
+
+def _log_least_squares(
+    rows: np.ndarray, cols: np.ndarray, values: np.ndarray, nrow: int, ncol: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise Σ (log|v| + x_row + y_col)² over the given entries; return exp(x), exp(y).
+
+    These are row and column scalings that equilibrate a matrix (Curtis–Reid);
+    the minimiser shifts exactly with any prior diagonal scaling, so the
+    scaled matrix does not depend on it.
+    """
+    k = rows.size
+    if k == 0:
+        return np.ones(nrow), np.ones(ncol)
+    index = np.arange(k)
+    system = sp.csr_array(
+        (np.ones(2 * k), (np.concatenate([index, index]), np.concatenate([rows, nrow + cols]))),
+        shape=(k, nrow + ncol),
+    )
+    x = _solve_log_system(system, -np.log(values))
+    return np.exp(x[:nrow]), np.exp(x[nrow:])
+
+
+def equilibrate(magnitude: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column scalings r, c of a non-negative matrix (Curtis–Reid, in logarithms).
+
+    ``r[:, None] * magnitude * c[None, :]`` has entries as close to 1 as a
+    diagonal scaling allows; the result is the same for every diagonally
+    scaled version of ``magnitude``.
+    """
+    i, j = np.nonzero(magnitude)
+    return _log_least_squares(i, j, magnitude[i, j], *magnitude.shape)
+
+
+def state_scaling(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Diagonal state scaling S (x = S x̃) that equilibrates S⁻¹AS, S⁻¹B·U, Y⁻¹·C S.
+
+    The least-squares problem in logarithms has one unknown per state, input
+    and output (inputs and outputs may be rescaled freely, so only the
+    relative sizes within a column of B or a row of C constrain S). The
+    diagonal of A is unaffected and takes no part.
+    """
+    n, m, p = A.shape[0], B.shape[1], C.shape[0]
+    rows, cols, vals = [], [], []
+    k, q = np.nonzero(A)
+    off = k != q
+    rows.append(k[off])
+    cols.append(q[off])
+    vals.append(np.abs(A[k[off], q[off]]))
+    k, j = np.nonzero(B)
+    rows.append(k)
+    cols.append(n + j)
+    vals.append(np.abs(B[k, j]))
+    i, q = np.nonzero(C)
+    rows.append(n + m + i)
+    cols.append(q)
+    vals.append(np.abs(C[i, q]))
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    v = np.concatenate(vals)
+    if r.size == 0:
+        return np.ones(n)
+    # entry scale factor exp(x_col − x_row): one unknown per node of a graph on n + m + p nodes
+    total = n + m + p
+    index = np.arange(r.size)
+    system = sp.csr_array(
+        (
+            np.concatenate([-np.ones(r.size), np.ones(r.size)]),
+            (np.concatenate([index, index]), np.concatenate([r, c])),
+        ),
+        shape=(r.size, total),
+    )
+    x = _solve_log_system(system, -np.log(v))
+    return np.exp(x[:n] - np.mean(x[:n]))
+
+
+def _scaled(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    S = state_scaling(A, B, C)
+    return A * S[None, :] / S[:, None], B / S[:, None], C * S[None, :]
+
+
+@dataclass(frozen=True)
+class _Mode:
+    value: complex
+    error: float
+    multiplicity: int
+    states: np.ndarray  # indices of the states of the connected parts of A it lives in
+
+
+def _clusters(A: np.ndarray) -> list[_Mode]:
+    """Distinct eigenvalues of A (upper half plane and real axis) with multiplicities.
+
+    A is split into its independent parts (connected components of the graph
+    of its off-diagonal entries); each part's eigenvalues come from
+    :func:`~netlistdyn.analysis.analyze_eigenvalues` with error estimates.
+    Eigenvalues closer than ten times the sum of their errors (and never
+    closer than 1e-12 relative) are one repeated eigenvalue, which may span
+    several parts.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    from .analysis import analyze_eigenvalues
+
+    n = A.shape[0]
+    if n == 0:
+        return []
+    count, label = connected_components(sp.csr_array(A != 0), directed=True, connection="weak")
+    values, errors, owner = [], [], []
+    for part in range(count):
+        idx = np.flatnonzero(label == part)
+        for mode in analyze_eigenvalues(A[np.ix_(idx, idx)], "all").modes:
+            values.append(mode.value)
+            errors.append(mode.abs_error if math.isfinite(mode.abs_error) else 0.0)
+            owner.append(part)
+    vals, errs = np.array(values, dtype=complex), np.array(errors)
+    parent = list(range(n))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i in range(n):
+        for j in range(i + 1, n):
+            gap = abs(vals[i] - vals[j])
+            if gap <= 10 * (errs[i] + errs[j]) + 1e-12 * max(abs(vals[i]), abs(vals[j])):
+                parent[find(i)] = find(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(find(i), []).append(i)
+    out = []
+    for members in groups.values():
+        lam = complex(np.mean(vals[members]))
+        err = float(errs[members].max(initial=0.0))
+        if lam.imag < -err:
+            continue  # the conjugate cluster stands for both
+        if abs(lam.imag) <= err:
+            lam = complex(lam.real, 0.0)
+        states = np.flatnonzero(np.isin(label, [owner[i] for i in members]))
+        out.append(_Mode(lam, err, len(members), states))
+    return sorted(out, key=lambda m: (-m.value.real, -m.value.imag))
+
+
+def _cleaned(M: np.ndarray, n: int, axis: int | None = None) -> np.ndarray:
+    """Entries at the rounding level of an orthogonal transformation set to 0.
+
+    The level is 10·n·eps times the larger norm of the entry's row and column
+    (``axis=None``, for A), of its column (``axis=0``, for B: one input's
+    column is mixed) or of its row (``axis=1``, for C).
+    """
+    rows = np.linalg.norm(M, axis=1)[:, None]
+    cols = np.linalg.norm(M, axis=0)[None, :]
+    scale = np.maximum(rows, cols) if axis is None else (cols if axis == 0 else rows)
+    return np.where(np.abs(M) <= 10 * max(n, 1) * EPS * scale, 0.0, M)
+
+
+def _complement(W: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the complement of span(W) that stays close to the coordinate axes.
+
+    Householder QR of W with its rows ordered by importance (QR with column
+    pivoting of Wᵀ): a vector concentrated on a few states removes those and
+    leaves the other states nearly untouched, so the reduced model keeps the
+    sparsity and scaling of the original.
+    """
+    n, k = W.shape
+    if k >= n:
+        return np.zeros((n, 0))
+    _, _, perm = sla.qr(W.T, mode="economic", pivoting=True)
+    order = np.concatenate([perm, np.setdiff1d(np.arange(n), perm, assume_unique=False)])
+    Q, _ = sla.qr(W[order], mode="full")
+    out = np.empty((n, n - k))
+    out[order] = Q[:, k:]
+    return out
+
+
+@dataclass(frozen=True)
+class _Test:
+    """Outcome of one PBH test at one eigenvalue cluster."""
+
+    deficiency: int
+    vectors: np.ndarray  # left (controllability) null vectors, original coordinates, one per column
+    margin: float  # smallest kept cosine / tolerance (> 1: decided with room)
+
+
+def _deficient(basis: np.ndarray, targets: np.ndarray, tol: float) -> tuple[int, np.ndarray, float]:
+    """Combinations of the basis orthogonal to every (normalised) target column.
+
+    Returns how many there are, the combined vectors and the margin of the
+    smallest kept cosine over ``tol``.
+    """
+    k = basis.shape[1]
+    norms = np.linalg.norm(targets, axis=0)
+    used = norms > 0
+    if not np.any(used):
+        return k, basis, math.inf
+    cosines = basis.conj().T @ (targets[:, used] / norms[used])
+    P, sv, _ = sla.svd(cosines)  # P: k × k
+    rank = int(np.sum(sv > tol))
+    margin = float(sv[:rank].min() / tol) if rank else math.inf
+    return k - rank, basis @ P[:, rank:], margin
+
+
+def _pbh(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, lam: complex, multiplicity: int, tol: float
+) -> tuple[_Test, _Test]:
+    """Both PBH tests at one eigenvalue cluster, on the equilibrated [A − λI, B; C, 0].
+
+    Returns the controllability test (left null vectors w of A − λI with
+    wᴴB = 0) and the observability test (right null vectors v with Cv = 0),
+    vectors in the model's coordinates.
+    """
+    n = A.shape[0]
+    magnitude = np.block(
+        [[np.abs(A) + abs(lam) * np.eye(n), np.abs(B)], [np.abs(C), np.zeros((C.shape[0], B.shape[1]))]]
+    )
+    r, c = equilibrate(magnitude)
+    r, c = r[:n], c[:n]
+    shifted = (A - lam * np.eye(n)) if lam.imag else (A - lam.real * np.eye(n))
+    U, s, Vh = sla.svd(shifted * r[:, None] * c[None, :])
+    top = s[0] if s[0] > 0 else 1.0
+    k = int(np.clip(np.sum(s <= NULL_RTOL * top), 1, max(1, multiplicity)))
+    gap = s[n - k - 1] / top if n - k - 1 >= 0 else 1.0
+    tol = max(tol, 100 * n * EPS / max(gap, 1e-300))
+    left, right = U[:, n - k :], Vh[n - k :].conj().T
+    dc, wc, mc = _deficient(left, B * r[:, None], tol)
+    do, vo, mo = _deficient(right, (C * c[None, :]).conj().T, tol)
+    return _Test(dc, wc * r[:, None], mc), _Test(do, vo * c[:, None], mo)
+
+
+def _real_basis(vectors: Sequence[np.ndarray], n: int) -> np.ndarray:
+    """Orthonormal real basis of the span of the vectors and their conjugates."""
+    if not vectors:
+        return np.zeros((n, 0))
+    stacked = np.hstack([np.hstack([v.real, v.imag]) if np.iscomplexobj(v) else v for v in vectors])
+    stacked = stacked[:, np.linalg.norm(stacked, axis=0) > 0]
+    if stacked.shape[1] == 0:
+        return np.zeros((n, 0))
+    stacked = stacked / np.linalg.norm(stacked, axis=0)
+    U, s, _ = sla.svd(stacked, full_matrices=False)
+    return U[:, : int(np.sum(s > 1e-8 * s[0]))]
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """What a deflation removed, and the model that remains.
+
+    Attributes
+    ----------
+    A, B, C : numpy.ndarray
+        The remaining realisation (states are orthonormal combinations of
+        scaled original states).
+    uncontrollable, unobservable : tuple of complex
+        The removed eigenvalues (1/s), one entry per state removed, conjugates
+        listed separately.
+    backward_error : float
+        Relative size (to ‖A‖) of the couplings the deflation treated as zero,
+        plus its rounding: the reduced A is the exact reduction of a model
+        within this relative distance.
+    margin : float
+        Smallest ratio of a kept cosine to its tolerance over all tests
+        (close to 1: the decision was close).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    uncontrollable: tuple[complex, ...]
+    unobservable: tuple[complex, ...]
+    backward_error: float
+    margin: float
+
+    @property
+    def data_error(self) -> float:
+        """Normwise error (1/s) of the reduced A: backward_error · ‖A‖₂ (for eigenvalue estimates)."""
+        return self.backward_error * float(np.linalg.norm(self.A, 2)) if self.A.size else 0.0
+
+
+def _copies(mode: _Mode, count: int) -> list[complex]:
+    if mode.value.imag:
+        return [mode.value, mode.value.conjugate()] * count
+    return [mode.value] * count
+
+
+def deflate(
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    controllable: bool,
+    observable: bool,
+    tol: float = RANK_RTOL,
+) -> Reduction:
+    """Remove uncontrollable (``controllable=True``) and/or unobservable modes until none is left.
+
+    Parameters
+    ----------
+    A, B, C : numpy.ndarray
+        The realisation (any units).
+    controllable, observable : bool
+        Which kinds of mode to remove.
+    tol : float
+        Smallest cosine tolerance of the PBH tests.
+
+    Returns
+    -------
+    Reduction
+    """
+    unc: list[complex] = []
+    uno: list[complex] = []
+    error = 0.0
+    margin = math.inf
+    A, B, C = (np.array(M, dtype=float) for M in (A, B, C))
+    for _ in range(2 * A.shape[0] + 2):
+        n = A.shape[0]
+        if n == 0:
+            break
+        A, B, C = _scaled(A, B, C)
+        clusters = _clusters(A)
+        tests = []
+        for mode in clusters:
+            idx = mode.states
+            tests.append(_pbh(A[np.ix_(idx, idx)], B[idx], C[:, idx], mode.value, mode.multiplicity, tol))
+        found = False
+        for kind in ("c", "o"):
+            if (kind == "c" and not controllable) or (kind == "o" and not observable):
+                continue
+            vectors, removed = [], []
+            for mode, pair in zip(clusters, tests, strict=True):
+                test = pair[0] if kind == "c" else pair[1]
+                if test.deficiency:
+                    full = np.zeros((n, test.vectors.shape[1]), dtype=test.vectors.dtype)
+                    full[mode.states] = test.vectors
+                    vectors.append(full)
+                    removed += _copies(mode, test.deficiency)
+                else:
+                    margin = min(margin, test.margin)
+            if not removed:
+                continue
+            W = _real_basis(vectors, n)
+            if W.shape[1] == 0:
+                continue
+            Q = _complement(W)
+            norm_a = max(np.linalg.norm(A, 2), 1e-300)
+            coupling = W.T @ A @ Q if kind == "c" else Q.T @ A @ W
+            error += (np.linalg.norm(coupling, 2) if coupling.size else 0.0) / norm_a + 10 * n * EPS
+            A, B, C = _cleaned(Q.T @ A @ Q, n), _cleaned(Q.T @ B, n, 0), _cleaned(C @ Q, n, 1)
+            (unc if kind == "c" else uno).extend(removed[: W.shape[1]])
+            found = True
+            break
+        if not found:
+            break
+    return Reduction(A, B, C, tuple(unc), tuple(uno), error, margin)
+
+
+# --- structure and minimal realisation ------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -30,19 +428,25 @@ class Structure:
     Attributes
     ----------
     uncontrollable, unobservable : tuple of complex
-        Eigenvalues that fail the PBH test (1/s).
-    controllable, observable : bool
-    krylov_ranks : tuple of int
-        Ranks of the controllability and observability matrices.
+        Eigenvalues (1/s) that fail the PBH test, one entry per state that
+        cannot be reached (or seen).
+    ranks : tuple of int
+        Dimensions of the controllable and the observable subspaces.
+    nstates : int
     tolerance : float
-        The relative singular-value threshold used.
+        The smallest cosine tolerance of the PBH tests (module docstring).
+    margin : float
+        Smallest ratio of a passing mode's cosine to its tolerance: how far
+        the closest "controllable/observable" decision was from the other
+        answer (above 1e3 is a clear decision).
     """
 
     uncontrollable: tuple[complex, ...]
     unobservable: tuple[complex, ...]
-    krylov_ranks: tuple[int, int]
+    ranks: tuple[int, int]
     nstates: int
     tolerance: float = RANK_RTOL
+    margin: float = math.inf
 
     @property
     def controllable(self) -> bool:
@@ -54,95 +458,45 @@ class Structure:
         """True when every mode passes the PBH observability test."""
         return not self.unobservable
 
-    @property
-    def krylov_agrees(self) -> bool:
-        """True when the Krylov ranks tell the same story as PBH."""
-        n = self.nstates
-        return (self.krylov_ranks[0] == n) == self.controllable and (
-            self.krylov_ranks[1] == n
-        ) == self.observable
-
-
-def _rank_deficient(matrix: np.ndarray, tol: float) -> bool:
-    values = sla.svdvals(matrix)
-    return values.size == 0 or values[-1] <= tol * max(values[0], 1e-300)
-
-
-def _krylov(A: np.ndarray, B: np.ndarray, normalise: bool = True) -> np.ndarray:
-    """[B AB … Aⁿ⁻¹B], by default with unit columns (zero columns dropped)."""
-    n = A.shape[0]
-    blocks, block = [], B
-    for _ in range(n):
-        blocks.append(block)
-        block = A @ block
-    K = np.hstack(blocks) if blocks else np.zeros((n, 0))
-    if not normalise:
-        return K
-    norms = np.linalg.norm(K, axis=0)
-    return K[:, norms > 0] / norms[norms > 0]
-
-
-def _krylov_rank(A: np.ndarray, B: np.ndarray, tol: float) -> int:
-    K = _krylov(A, B)
-    if K.size == 0:
-        return 0
-    values = sla.svdvals(K)
-    return int(np.sum(values > tol * values[0]))
-
-
-def _distinct(values: np.ndarray) -> list[complex]:
-    out: list[complex] = []
-    for v in values:
-        if all(abs(v - w) > 1e-9 * max(1.0, abs(v)) for w in out):
-            out.append(complex(v))
-    return out
-
 
 def structure(model: StateSpaceModel, tol: float = RANK_RTOL) -> Structure:
-    """PBH controllability and observability of ``model``."""
-    A, B, C = model.A, model.B, model.C
-    n = model.nstates
-    eye = np.eye(n)
-    unc, uno = [], []
-    for lam in _distinct(np.linalg.eigvals(A)) if n else []:
-        if _rank_deficient(np.hstack([A - lam * eye, B]), tol):
-            unc.append(lam)
-        if _rank_deficient(np.vstack([A - lam * eye, C]), tol):
-            uno.append(lam)
-    ranks = (_krylov_rank(A, B, tol), _krylov_rank(A.T, C.T, tol))
-    return Structure(tuple(unc), tuple(uno), ranks, n, tol)
+    """PBH controllability and observability of ``model`` (scale-free, module docstring).
 
-
-def minimal(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceModel, int]:
-    """Minimal realisation: keep the controllable part, then its observable part.
-
-    Orthonormal bases of the reachable and observable subspaces come from
-    SVDs of the column-normalised Krylov matrices. The states of the result
-    are combinations of the original ones and are named ``z1``, ``z2``...
-
-    Returns
-    -------
+    Parameters
+    ----------
     model : StateSpaceModel
-        The reduced model (the original when it is already minimal).
-    dropped : int
-        Number of states removed.
+    tol : float
+        Smallest cosine tolerance (default :data:`RANK_RTOL`).
     """
-    A, B, C = model.A, model.B, model.C
-    basis = _range_basis(A, B, tol)
-    A1, B1, C1 = basis.T @ A @ basis, basis.T @ B, C @ basis
-    obs = _range_basis(A1.T, C1.T, tol)
-    A2, B2, C2 = obs.T @ A1 @ obs, obs.T @ B1, C1 @ obs
-    dropped = model.nstates - A2.shape[0]
-    if dropped == 0:
-        return model, 0
-    import scipy.sparse as sp
+    n = model.nstates
+    both = deflate(model.A, model.B, model.C, controllable=True, observable=True, tol=tol)
+    if both.uncontrollable or both.unobservable:  # then each kind on its own (a mode may be both)
+        ctrl = deflate(model.A, model.B, model.C, controllable=True, observable=False, tol=tol)
+        obs = deflate(model.A, model.B, model.C, controllable=False, observable=True, tol=tol)
+    else:
+        ctrl = obs = both
+    return Structure(
+        ctrl.uncontrollable,
+        obs.unobservable,
+        (n - len(ctrl.uncontrollable), n - len(obs.unobservable)),
+        n,
+        tol,
+        min(ctrl.margin, obs.margin),
+    )
 
-    names = tuple(f"z{k + 1}" for k in range(A2.shape[0]))
-    info = CompileInfo(order=A2.shape[0], warnings=model.info.warnings)
+
+def minimal_realisation(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceModel, Reduction]:
+    """Minimal realisation and what was removed (see :func:`minimal`)."""
+    red = deflate(model.A, model.B, model.C, controllable=True, observable=True, tol=tol)
+    dropped = model.nstates - red.A.shape[0]
+    if dropped == 0:
+        return model, red
+    names = tuple(f"z{k + 1}" for k in range(red.A.shape[0]))
+    info = CompileInfo(order=red.A.shape[0], warnings=model.info.warnings)
     reduced = StateSpaceModel(
-        sp.csr_array(A2),
-        sp.csr_array(B2),
-        sp.csr_array(C2),
+        sp.csr_array(red.A),
+        sp.csr_array(red.B),
+        sp.csr_array(red.C),
         model.D_sparse,
         model.D1_sparse,
         names,
@@ -151,21 +505,41 @@ def minimal(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceM
         model.title,
         info,
     )
-    return reduced, dropped
+    return reduced, red
 
 
-def _range_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
-    K = _krylov(A, B)
-    if K.size == 0:
-        return np.zeros((A.shape[0], 0))
-    U, values, _ = sla.svd(K, full_matrices=False)
-    rank = int(np.sum(values > tol * values[0]))
-    return U[:, :rank]
+def minimal(model: StateSpaceModel, tol: float = RANK_RTOL) -> tuple[StateSpaceModel, int]:
+    """Minimal realisation: remove the uncontrollable, then the unobservable modes.
+
+    The modes are found by the same scale-free PBH tests as :func:`structure`
+    and projected out orthogonally in Curtis–Reid-scaled state coordinates.
+    The states of the result are combinations of the original ones, named
+    ``z1``, ``z2``...
+
+    Returns
+    -------
+    model : StateSpaceModel
+        The reduced model (the original when it is already minimal).
+    dropped : int
+        Number of states removed.
+    """
+    reduced, _ = minimal_realisation(model, tol)
+    return reduced, model.nstates - reduced.nstates
+
+
+# --- transfer functions ---------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class TransferFunction:
-    """One input–output transfer function G(s) = num(s)/den(s) (coefficients, highest power first)."""
+    """One input–output transfer function G(s) = num(s)/den(s) (coefficients, highest power first).
+
+    ``den`` is the characteristic polynomial of A (monic) and ``num`` the
+    matching numerator, as the lecture notes write them; ``poles`` and
+    ``zeros`` are those of G after cancelling the modes the pair does not see.
+    Coefficients and parts of roots smaller than their own rounding error
+    bound are exactly 0. ``dc_gain`` is G(0) (∞ for a pole at 0).
+    """
 
     output: str
     input: str
@@ -176,13 +550,13 @@ class TransferFunction:
     dc_gain: float
 
     def text(self, digits: int = 6) -> str:
-        """``(a s^2 + b s + c) / (s^3 + ...)``."""
+        """``(a·s^2 + b·s + c) / (s^3 + ...)`` with every non-zero coefficient."""
 
         def poly(coeffs: tuple[float, ...]) -> str:
             deg = len(coeffs) - 1
             terms = []
             for k, c in enumerate(coeffs):
-                if abs(c) <= 1e-12 * max(abs(x) for x in coeffs):
+                if c == 0:
                     continue
                 power = deg - k
                 mono = "" if power == 0 else ("s" if power == 1 else f"s^{power}")
@@ -192,45 +566,199 @@ class TransferFunction:
         return f"{self.output}/{self.input} = ({poly(self.num)}) / ({poly(self.den)})"
 
 
-def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
-    """G(s) for every input–output pair, normalised to a monic denominator.
+def _poly(roots: Sequence[complex], errors: Sequence[float], gain: float = 1.0) -> np.ndarray:
+    """Real coefficients of gain·∏(s − r); those below their rounding bound are exactly 0.
 
-    Uses scipy's ``ss2tf`` (characteristic polynomial of A and the numerators
-    from it). The coefficients are not reduced; the poles and zeros are the
-    roots after cancelling common ones (within 1e-6 relative), i.e. those of
-    the reduced transfer function.
+    The bound of each coefficient is propagated alongside it: the roots' own
+    errors, plus eps per operation on the magnitudes.
     """
+    coeffs = np.array([1.0 + 0j])
+    bound = np.array([0.0])
+    for r, e in zip(roots, errors, strict=True):
+        mag = np.abs(coeffs)
+        coeffs = np.convolve(coeffs, [1.0, -r])
+        bound = np.convolve(bound, [1.0, abs(r)]) + np.convolve(mag, [0.0, e])
+        bound += 4 * EPS * np.convolve(mag, [1.0, abs(r)])
+    coeffs = coeffs.real * gain
+    bound = bound * abs(gain) + 4 * EPS * np.abs(coeffs)
+    coeffs[np.abs(coeffs) <= 10 * bound] = 0.0
+    return coeffs
+
+
+def _relative_degree(A: np.ndarray, b: np.ndarray, c: np.ndarray) -> int | None:
+    """First k ≥ 1 with c A^(k−1) b ≠ 0 beyond its rounding bound; None if all vanish."""
+    n = A.shape[0]
+    v, mag = b.astype(float), np.abs(b)
+    for k in range(1, n + 1):
+        value, size = float(c @ v), float(np.abs(c) @ mag)
+        if abs(value) > 100 * n * k * EPS * size:
+            return k
+        v, mag = A @ v, np.abs(A) @ mag
+    return None
+
+
+def _zeros_at_origin(
+    A: np.ndarray, b: np.ndarray, c: np.ndarray, d: float, d1: float, data_error: float = 0.0
+) -> int:
+    """How many leading moments of G at s = 0 vanish (A invertible): the zeros at the origin.
+
+    G(s) = (d − c A⁻¹ b) + s (d1 − c A⁻² b) − Σ_{k≥2} s^k c A^{−(k+1)} b. Each
+    vector v_k = A⁻¹ v_{k−1} carries a first-order rounding bound
+    |A⁻¹| (|A| |v_k| + |v_{k−1}| + bound_{k−1}) (in units of eps); a moment
+    within 100·n·k·eps of its bound is zero. ``data_error`` is the relative
+    normwise error the realisation itself carries (from a deflation); it
+    adds data_error·‖c‖‖b‖‖A⁻¹‖^{k+1}·(1 + (k+1)‖A‖‖A⁻¹‖) to each moment's bound.
+    """
+    n = A.shape[0]
+    inv = np.linalg.inv(A)
+    abs_inv, abs_a = np.abs(inv), np.abs(A)
+    norm_inv, norm_a = np.linalg.norm(inv, 2), np.linalg.norm(A, 2)
+    outer = float(np.linalg.norm(c) * np.linalg.norm(b))
+    prev, prev_bound = b.astype(float), np.zeros(n)
+    count = 0
+    for k in range(n + 2):
+        v = np.linalg.solve(A, prev)
+        bound = abs_inv @ (abs_a @ np.abs(v) + np.abs(prev) + prev_bound)
+        extra = d if k == 0 else (d1 if k == 1 else 0.0)
+        value = extra - float(c @ v)
+        size = abs(extra) + float(np.abs(c) @ (np.abs(v) + bound))
+        data = data_error * outer * norm_inv ** (k + 1) * (1 + (k + 1) * norm_a * norm_inv)
+        if abs(value) > 100 * (n + 1) * (k + 1) * EPS * size + 10 * data:
+            return count
+        count += 1
+        prev, prev_bound = v, bound
+    return count
+
+
+def _zeros(A: np.ndarray, b: np.ndarray, c: np.ndarray, d: float, d1: float, count: int) -> np.ndarray:
+    """The ``count`` finite transmission zeros: eigenvalues of the equilibrated Rosenbrock pencil."""
+    if count <= 0:
+        return np.zeros(0, dtype=complex)
+    n = A.shape[0]
+    M = np.block([[A, b[:, None]], [-c[None, :], np.array([[-d]])]])
+    N = np.zeros((n + 1, n + 1))
+    N[:n, :n] = np.eye(n)
+    N[n, n] = d1
+    r, col = equilibrate(np.abs(M) + np.abs(N))
+    alpha, beta = sla.eig(M * r[:, None] * col, N * r[:, None] * col, right=False, homogeneous_eigvals=True)
+    finiteness = np.abs(beta) / np.maximum(np.abs(alpha) + np.abs(beta), 1e-300)
+    order = np.argsort(-finiteness)[:count]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zeros = alpha[order] / beta[order]
+    return zeros[np.isfinite(zeros)]
+
+
+def _match_remove(values: list[complex], remove: Sequence[complex]) -> list[complex]:
+    left = list(values)
+    for r in remove:
+        if not left:
+            break
+        j = int(np.argmin([abs(v - r) for v in left]))
+        left.pop(j)
+    return left
+
+
+def _gain_point(roots: Sequence[complex]) -> complex:
+    """A complex frequency away from every root, at the roots' typical magnitude."""
+    mags = [abs(r) for r in roots if r != 0]
+    scale = math.exp(float(np.mean(np.log(mags)))) if mags else 1.0
+    best, best_dist = complex(0.3 * scale, 1.1 * scale), -1.0
+    for angle in np.linspace(0.2, 1.4, 7):
+        for factor in (0.7, 1.3, 2.1):
+            s0 = factor * scale * complex(math.cos(angle), math.sin(angle))
+            dist = min((abs(s0 - r) / max(abs(s0), 1e-300) for r in roots), default=1.0)
+            if dist > best_dist:
+                best, best_dist = s0, dist
+    return best
+
+
+def _siso(
+    A: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+    d: float,
+    d1: float,
+    modes: list[complex],
+    errors: list[float],
+) -> tuple[np.ndarray, list[complex], list[complex], float]:
+    """Numerator over the characteristic polynomial, reduced poles and zeros, DC gain."""
+    red = deflate(A, b[:, None], c[None, :], controllable=True, observable=True)
+    Ar, br, cr = red.A, red.B[:, 0], red.C[0]
+    removed = list(red.uncontrollable) + list(red.unobservable)
+    poles = _match_remove(modes, removed)
+    cancelled = _match_remove(modes, poles)
+    nr = Ar.shape[0]
+    if d1:
+        degree = nr + 1
+    elif d:
+        degree = nr
+    else:
+        rel = _relative_degree(Ar, br, cr) if nr else None
+        degree = -1 if rel is None else nr - rel
+    if degree < 0:  # G ≡ 0
+        return np.array([0.0]), poles, [], 0.0
+    singular = any(p == 0 for p in poles)
+    at_origin = 0
+    if not singular and nr:
+        at_origin = min(degree, _zeros_at_origin(Ar, br, cr, d, d1, red.backward_error))
+    zeros = list(_zeros(Ar, br, cr, d, d1, degree))
+    zeros.sort(key=abs)
+    zeros = [0j] * at_origin + zeros[at_origin:]
+    scale = max((abs(p) for p in modes), default=1.0)
+    zero_err = [100 * (nr + 1) * EPS * max(abs(z), 1e-300) if z != 0 else 0.0 for z in zeros]
+    zeros = [
+        complex(z.real if abs(z.real) > e else 0.0, z.imag if abs(z.imag) > e else 0.0)
+        for z, e in zip(zeros, zero_err, strict=True)
+    ]
+    s0 = _gain_point([*poles, *zeros] or [complex(scale)])
+    value = d + s0 * d1 + (cr @ np.linalg.solve(s0 * np.eye(nr) - Ar, br) if nr else 0.0)
+    shape = np.prod([s0 - z for z in zeros]) / np.prod([s0 - p for p in poles]) if poles or zeros else 1.0
+    gain = float((value / shape).real)
+    pole_err = [errors[modes.index(p)] if p in modes else 0.0 for p in cancelled]
+    num = _poly([*zeros, *cancelled], [*zero_err, *pole_err], gain)
+    if singular:
+        dc = math.inf
+    elif nr == 0:
+        dc = d
+    elif at_origin:
+        dc = 0.0
+    else:
+        dc = float(d - cr @ np.linalg.solve(Ar, br))
+    return num, poles, zeros, dc
+
+
+def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
+    """G(s) = c (sI − A)⁻¹ b + d + s·d1 for every input–output pair.
+
+    Each pair's minimal realisation comes from the scale-free deflation of
+    :func:`deflate`; its zeros are the finite eigenvalues of the equilibrated
+    Rosenbrock pencil (zeros at the origin counted exactly from the vanishing
+    moments c A^−k b), its poles the model's eigenvalues that survive. The
+    printed numerator is that of the notes: over the characteristic
+    polynomial of A, i.e. multiplied by the cancelled factors.
+    """
+    from .analysis import analyze_eigenvalues
+
+    n = model.nstates
+    if n:
+        eig = analyze_eigenvalues(model.A, "all")
+        modes = [m.value for m in eig.modes]
+        errors = [m.abs_error if math.isfinite(m.abs_error) else 0.0 for m in eig.modes]
+    else:
+        modes, errors = [], []
+    den = _poly(modes, errors)
     out = []
     for j, name_in in enumerate(model.inputs):
-        num, den = (
-            sig.ss2tf(model.A, model.B, model.C, model.D, input=j)
-            if model.nstates
-            else (model.D[:, [j]], np.array([1.0]))
-        )
-        den = np.atleast_1d(den)
-        lead = den[0]
         for i, name_out in enumerate(model.outputs):
-            n = np.atleast_2d(num)[i] / lead
-            big = np.max(np.abs(n)) if n.size else 0.0
-            first = np.flatnonzero(np.abs(n) > 1e-12 * big)  # leading rounding residue is not a term
-            n = n[first[0] :] if first.size else np.zeros(0)
-            d = den / lead
-            if n.size == 0:
-                n = np.array([0.0])
-            zeros = list(np.roots(n)) if n.size > 1 else []
-            poles = list(np.roots(d)) if d.size > 1 else []
-            for z in list(zeros):  # cancel common roots (modes the pair does not see)
-                match = next((p for p in poles if abs(p - z) <= 1e-6 * max(1.0, abs(z))), None)
-                if match is not None:
-                    zeros.remove(z)
-                    poles.remove(match)
-            dc = float(n[-1] / d[-1]) if d[-1] != 0 else float("inf")
+            num, poles, zeros, dc = _siso(
+                model.A, model.B[:, j], model.C[i], float(model.D[i, j]), float(model.D1[i, j]), modes, errors
+            )
             out.append(
                 TransferFunction(
                     name_out,
                     name_in,
-                    tuple(float(x) for x in n),
-                    tuple(float(x) for x in d),
+                    tuple(float(x) for x in num),
+                    tuple(float(x) for x in den),
                     tuple(complex(p) for p in poles),
                     tuple(complex(z) for z in zeros),
                     dc,
@@ -313,11 +841,20 @@ def _check_canonical_size(model: StateSpaceModel) -> None:
         )
 
 
+def _krylov(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """[B AB … Aⁿ⁻¹B]."""
+    blocks, block = [], B
+    for _ in range(A.shape[0]):
+        blocks.append(block)
+        block = A @ block
+    return np.hstack(blocks) if blocks else np.zeros((A.shape[0], 0))
+
+
 def _controller_transform(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     """T = [q; qA; …; qAⁿ⁻¹] with q the last row of [b Ab … Aⁿ⁻¹b]⁻¹; None if (A, b) is uncontrollable."""
-    if _krylov_rank(A, b[:, None], RANK_RTOL) < A.shape[0]:
+    if deflate(A, b[:, None], np.zeros((0, A.shape[0])), controllable=True, observable=False).uncontrollable:
         return None
-    rows = [np.linalg.inv(_krylov(A, b[:, None], normalise=False))[-1]]
+    rows = [np.linalg.inv(_krylov(A, b[:, None]))[-1]]
     for _ in range(A.shape[0] - 1):
         rows.append(rows[-1] @ A)
     return np.array(rows)

@@ -416,8 +416,10 @@ def control_dict(structure: Any, tfs: Sequence[Any]) -> dict[str, Any]:
         "observable": structure.observable,
         "uncontrollable_modes": [[v.real, v.imag] for v in structure.uncontrollable],
         "unobservable_modes": [[v.real, v.imag] for v in structure.unobservable],
-        "krylov_ranks": list(structure.krylov_ranks),
+        "controllable_dimension": structure.ranks[0],
+        "observable_dimension": structure.ranks[1],
         "rank_tolerance": structure.tolerance,
+        "decision_margin": structure.margin,
         "transfer_functions": [
             {
                 "output": t.output,
@@ -441,7 +443,8 @@ def control_text(structure: Any, tfs: Sequence[Any]) -> str:
 
     out = [
         "",
-        f"controllability (PBH, singular-value tolerance {structure.tolerance:g}): "
+        "controllability (PBH on the equilibrated Hautus matrices, cosine tolerance "
+        f"{structure.tolerance:g}): "
         + (
             "controllable"
             if structure.controllable
@@ -450,10 +453,10 @@ def control_text(structure: Any, tfs: Sequence[Any]) -> str:
         "observability (PBH): "
         + ("observable" if structure.observable else f"unobservable modes {modes(structure.unobservable)}"),
     ]
-    if not structure.krylov_agrees:
+    if structure.margin < 1e3:
         out.append(
-            f"note: the Krylov ranks ({structure.krylov_ranks[0]}, {structure.krylov_ranks[1]} of "
-            f"{structure.nstates}) disagree with PBH; PBH is the more reliable test"
+            f"note: the closest decision passed its tolerance by a factor of only {structure.margin:.3g}: "
+            "a mode is nearly uncontrollable or nearly unobservable"
         )
     for t in tfs:
         out.append(t.text())

@@ -35,7 +35,7 @@ def test_cart_with_positions_is_controllable_and_observable() -> None:
     model = compile_file("dipc.cir", outputs=["x(cart)", "angle(r1)", "angle(r2)"])
     structure = control.structure(model)
     assert structure.controllable and structure.observable
-    assert structure.krylov_agrees
+    assert structure.ranks == (6, 6) and structure.margin > 1e3
 
 
 def test_balanced_branches_mode_is_named_and_removed() -> None:
