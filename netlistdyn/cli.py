@@ -293,6 +293,22 @@ def analyze(
     )
 
     def body() -> int:
+        from .large import descriptor_wanted
+        from .parser import parse_file
+
+        early = parse_file(netlist, parse_param_overrides(params))
+        if descriptor_wanted(early, "auto"):  # large circuit: sparse descriptor form
+            explicit_only = (
+                ("--control", control_report),
+                ("--minimal", minimal),
+                ("--symbolic", symbolic or symbols is not None),
+                ("--canonical", canonical),
+                ("--bode", bode),
+                ("--save", save),
+                ("--coordinates", coordinates is not None),
+            )
+            return _analyze_descriptor(early, outputs, fmt, out, [f for f, on in explicit_only if on])
+
         from . import progress
 
         stages = contextlib.ExitStack()
@@ -503,11 +519,11 @@ def validate(
 @click.option("--tstep", type=POSITIVE, default=None, help="Output step [s] (default: tstop/1000).")
 @click.option(
     "--method",
-    type=click.Choice(list(METHOD_CHOICES)),
+    type=click.Choice([*METHOD_CHOICES, "descriptor"]),
     default="auto",
     show_default=True,
     help="exact (dense expm, small models), rational (sparse Padé, large models), krylov, "
-    "or a scipy solve_ivp method; auto picks by size.",
+    "a scipy solve_ivp method, or descriptor (sparse MNA form, power grids); auto picks by size.",
 )
 @click.option("--rtol", type=POSITIVE, default=1e-10, show_default=True, help="Relative tolerance.")
 @click.option("--atol", type=POSITIVE, default=None, help="Absolute tolerance (solve_ivp methods).")
@@ -577,12 +593,20 @@ def simulate(
         from .api import simulation_pipeline
         from .coordinates import select_outputs
         from .display import eng, signal_units
+        from .large import descriptor_wanted
         from .parser import parse_file
         from .report import simulation_csv, simulation_dict, simulation_summary, to_json
         from .simulate import input_signals
         from .validity import rod_angles, validity_warnings
 
         parsed = parse_file(netlist, parse_param_overrides(params))
+        if descriptor_wanted(parsed, method):  # large circuit: sparse descriptor form
+            refused = [f for f, on in (("--coordinates", coordinates), ("--animate", animate)) if on]
+            if refused:
+                raise UsageError(f"{refused[0]} is not available in the sparse descriptor form")
+            return _simulate_descriptor(
+                parsed, netlist, outputs, tstop, tstep, rtol, ics, csv_path, plot, fmt, out, quiet
+            )
         angles = rod_angles(parsed)
         extra = list(angles)
         if animate:
@@ -932,6 +956,71 @@ def connect(
         return 0
 
     run_guarded(body)
+
+
+def _simulate_descriptor(
+    parsed: Any,
+    netlist: str,
+    outputs: tuple[str, ...],
+    tstop: float | None,
+    tstep: float | None,
+    rtol: float,
+    ics: tuple[str, ...],
+    csv_path: str | None,
+    plot: str | None,
+    fmt: str,
+    out: str | None,
+    quiet: bool,
+) -> int:
+    """``simulate`` on the sparse descriptor form (see :mod:`netlistdyn.large`)."""
+    from . import progress
+    from .display import eng
+    from .large import simulate_large
+    from .report import simulation_csv, simulation_dict, simulation_summary, to_json
+
+    _print_warnings(parsed.warnings)
+    with progress.bar("simulate", 100, quiet, unit="%") as bar:
+        result = simulate_large(
+            parsed, list(outputs) or None, tstop, tstep, ics, progress.fraction_callback(bar), rtol
+        )
+    if not result.ok:
+        click.echo(f"netlistdyn: {result.method} {result.status}: {result.message}", err=True)
+        return EXIT_MISMATCH
+    if csv_path:
+        write_atomic(csv_path, simulation_csv(result))
+    if plot:
+        from .plots import simulation_plot
+
+        simulation_plot(result, plot)
+    if fmt == "json":
+        emit(to_json(simulation_dict(result, netlist)), out)
+    else:
+        horizon = result.horizon
+        summary = (
+            f"{parsed.title}\nsimulated 0..{eng(horizon.tstop, 's')}, {result.time.size} points "
+            f"every {eng(horizon.tstep, 's')} ({horizon.source}); "
+            f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
+        )
+        emit(summary + simulation_summary(result), out)
+    return 0
+
+
+def _analyze_descriptor(
+    parsed: Any, outputs: tuple[str, ...], fmt: str, out: str | None, refused: list[str]
+) -> int:
+    """``analyze`` of a large circuit: the descriptor form's size, states and slowest modes."""
+    from .large import DESCRIPTOR_UNKNOWNS, analyze_large, analyze_text
+    from .report import to_json
+
+    if refused:
+        raise UsageError(
+            f"{refused[0]} needs the explicit model, which is not formed above {DESCRIPTOR_UNKNOWNS} "
+            "unknowns (the sparse descriptor form is analysed instead)"
+        )
+    _print_warnings(parsed.warnings)
+    report = analyze_large(parsed, list(outputs) or None)
+    emit(to_json(report) if fmt == "json" else analyze_text(report), out)
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -44,6 +44,7 @@ IGNORED_DIRECTIVES = frozenset(
         ".options",
         ".option",
         ".opt",
+        ".opti",
         ".op",
         ".ac",
         ".dc",

@@ -1,0 +1,527 @@
+"""Transient and DC solution of a sparse descriptor system ``E x' = A x + B u``.
+
+For large linear circuits (power grids): nothing dense, memory bounded by a
+few sparse LU factors plus the requested outputs.
+
+DC operating point
+    ``A x = −B u(0)`` (capacitors open, inductors shorted), one real sparse
+    LU. The transient starts there unless ``.tran ... UIC`` (then from zero,
+    or from a given state), as SPICE does.
+
+Time stepping (``descriptor``)
+    The inputs are linear between breakpoints, and are carried exactly by a
+    nilpotent augmentation ``[x; u; u']``, so the only approximation is that
+    of the exponential: the L-stable [k−1/k] Padé approximant of ``e^{hM}``
+    (k = 12 by default: order 23), applied in product form — one real factor
+    ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair, where
+    ``(hM − p)⁻¹ y = (hA − pE)⁻¹ E y`` needs no inverse of the singular
+    ``E``. Because the approximant is strictly proper, the algebraic
+    unknowns (nodes without a capacitor, source currents) come out
+    consistent with the input at the end of every step. One complex sparse
+    LU per pole pair and step length (COLAMD ordering: the zero diagonal of
+    the source rows defeats symmetric orderings), kept for at most
+    :data:`CACHE_LENGTHS` step lengths; only the outputs are stored.
+
+Breakpoints closer than :data:`SNAP` (relative to the output step) to an
+output time are moved onto it: the input then differs from the true one only
+on that sliver, by less than slope × sliver, a change in charge below
+``|Δslope|·(SNAP·h)²``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from .descriptor import DescriptorSystem
+from .errors import NetlistError, SourceLocation
+from .waveforms import Dc, Pulse, Pwl, Waveform
+
+#: Breakpoints within this fraction of the output step from an output time are put on it.
+SNAP = 1e-6
+#: Number of step lengths whose factorisations are kept.
+CACHE_LENGTHS = 3
+#: Default Padé denominator degree.
+DEFAULT_ORDER = 12
+#: Kinds of step: the main L-stable one, the diagonal and the lower-order checks.
+MAIN, DIAGONAL, LOW = "main", "diagonal", "low"
+#: Denominator degree of the lower-order check after breakpoints.
+CHECK_ORDER = 8
+#: Default step check tolerance (relative to the largest voltage, or current, seen).
+DEFAULT_RTOL = 1e-10
+#: Steps between checks away from breakpoints.
+CHECK_INTERVAL = 16
+#: Steps are at least 1/2**MAX_LEVEL of the piece between output times and breakpoints.
+MAX_LEVEL = 48
+
+
+@contextlib.contextmanager
+def single_thread() -> Iterator[None]:
+    """Limit BLAS to one thread (SuperLU's dense kernels are slower with two on small blocks)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional
+        yield
+        return
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+class SourceValues:
+    """All source waveforms of a circuit, evaluated together (vectorised by kind).
+
+    Parameters
+    ----------
+    waveforms : sequence of Waveform
+        One per input, SPICE defaults already resolved.
+    """
+
+    def __init__(self, waveforms: Sequence[Waveform]) -> None:
+        self.count = len(waveforms)
+        dc = [(j, w.value) for j, w in enumerate(waveforms) if isinstance(w, Dc)]
+        self.dc_index = np.array([j for j, _ in dc], dtype=np.intp)
+        self.dc_value = np.array([v for _, v in dc], dtype=float)
+        pulses = [(j, w) for j, w in enumerate(waveforms) if isinstance(w, Pulse)]
+        self.pulse_index = np.array([j for j, _ in pulses], dtype=np.intp)
+        fields = ("v1", "v2", "td", "tr", "tf", "pw", "per")
+        self.pulse = {f: np.array([float(getattr(w, f)) for _, w in pulses]) for f in fields}
+        self.other = [(j, w) for j, w in enumerate(waveforms) if not isinstance(w, Dc | Pulse)]
+
+    def __call__(self, t: float) -> NDArray[np.float64]:
+        """Every input's value at time ``t`` (s)."""
+        out = np.empty(self.count)
+        out[self.dc_index] = self.dc_value
+        if self.pulse_index.size:
+            p = self.pulse
+            local = t - p["td"]
+            local = np.where(local > 0, np.mod(local, p["per"]), local)
+            value = p["v1"].copy()
+            rise = (local > 0) & (local < p["tr"])
+            value = np.where(rise, p["v1"] + (p["v2"] - p["v1"]) * local / p["tr"], value)
+            high = (local >= p["tr"]) & (local <= p["tr"] + p["pw"])
+            value = np.where(high, p["v2"], value)
+            fall_t = local - p["tr"] - p["pw"]
+            fall = (fall_t > 0) & (fall_t < p["tf"])
+            value = np.where(fall, p["v2"] + (p["v1"] - p["v2"]) * fall_t / p["tf"], value)
+            out[self.pulse_index] = value
+        for j, w in self.other:
+            out[j] = float(np.asarray(w(np.array([t])))[0])
+        return out
+
+    def piecewise_linear(self) -> bool:
+        """True when every input is linear between breakpoints."""
+        return all(w.piecewise_linear for _, w in self.other)
+
+
+def breakpoints(waveforms: Sequence[Waveform], tstop: float) -> NDArray[np.float64]:
+    """Sorted distinct times in (0, tstop) where some input's slope jumps (s)."""
+    chunks: list[NDArray[np.float64]] = [np.zeros(0)]
+    for w in waveforms:
+        if isinstance(w, Pulse | Pwl) or not isinstance(w, Dc):
+            chunks.append(np.asarray(w.breakpoints(tstop), dtype=float))
+    points = np.unique(np.concatenate(chunks))
+    return points[(points > 0) & (points < tstop)]
+
+
+def _lu(matrix: sp.sparray) -> spla.SuperLU:
+    return spla.splu(sp.csc_matrix(matrix), permc_spec="COLAMD")
+
+
+def dc_operating_point(system: DescriptorSystem, u0: NDArray[np.float64], where: str) -> NDArray[np.float64]:
+    """Solve ``A x = −B u0``: the DC operating point (capacitors open, inductors shorted).
+
+    Parameters
+    ----------
+    system : DescriptorSystem
+    u0 : numpy.ndarray
+        Source values (V, A).
+    where : str
+        File name for the error message.
+
+    Returns
+    -------
+    numpy.ndarray
+        Node voltages (V) and branch currents (A).
+
+    Raises
+    ------
+    NetlistError
+        The DC matrix is singular (a node that only capacitors reach, a loop
+        of inductors and voltage sources...).
+    """
+    try:
+        lu = _lu(system.A)
+    except RuntimeError:
+        raise NetlistError(
+            "no DC operating point: the DC matrix is singular (a node reached only through capacitors "
+            "or current sources, or a loop of inductors and voltage sources); use .tran ... UIC",
+            SourceLocation(where, 0),
+        ) from None
+    x = lu.solve(-(system.B @ u0))
+    residual = np.linalg.norm(system.A @ x + system.B @ u0)
+    scale = abs(system.A) @ np.abs(x) + abs(system.B) @ np.abs(u0)
+    if not np.all(np.isfinite(x)) or residual > 1e-8 * max(np.linalg.norm(scale), 1e-300):
+        raise NetlistError(
+            "no DC operating point: the DC matrix is numerically singular", SourceLocation(where, 0)
+        )
+    return x
+
+
+def pade_factors(order: int, diagonal: bool = False) -> tuple[tuple[complex, complex, float], ...]:
+    """Factors (p, α, c) of the [order−1/order] (or [order/order]) Padé approximant of e^z.
+
+    R(z) = Π (c + α/(z − p) + ᾱ/(z − p̄)); computed with mpmath in
+    :mod:`netlistdyn.integrators` (stored there for order 12).
+    """
+    from .integrators import pade_factors as stored
+    from .integrators import pade_factors_exact
+
+    return stored(diagonal) if order == 12 else pade_factors_exact(order, diagonal)
+
+
+class PadeStep:
+    """One step of length h of ``E x' = A x + B u`` with u linear on the step.
+
+    Parameters
+    ----------
+    system : DescriptorSystem
+    h : float
+        Step (s).
+    order : int
+        Padé denominator degree (even).
+    diagonal : bool
+        The [order/order] approximant (modulus 1 on the imaginary axis)
+        instead of the L-stable [order−1/order]: used only to check steps.
+    """
+
+    def __init__(self, system: DescriptorSystem, h: float, order: int, diagonal: bool = False) -> None:
+        self.h = h
+        self.E = sp.csr_array(system.E)
+        self.B = sp.csr_array(system.B)
+        hA = sp.csc_array(system.A * h, dtype=complex)
+        E = sp.csc_array(system.E, dtype=complex)
+        self.factors = [(_lu(hA - p * E), p, a, c) for p, a, c in pade_factors(order, diagonal)]
+
+    def __call__(self, x: NDArray[np.float64], u: NDArray[np.float64], s: NDArray[np.float64]) -> NDArray:
+        """State after the step from x, with input u at its start and slope s (units/s)."""
+        h = self.h
+        for lu, p, alpha, c in self.factors:
+            # (hM − p)⁻¹ on [x; u; s]: the input rows are upper triangular, then one sparse solve
+            sb = -s / p
+            ua = (h * sb - u) / p
+            xs = lu.solve((self.E @ x) - h * (self.B @ ua))
+            x = c * x + 2.0 * np.real(alpha * xs)
+            u_new = c * u + 2.0 * np.real(alpha * ua)
+            s = c * s + 2.0 * np.real(alpha * sb)
+            u = u_new
+        return x
+
+
+class _Steppers:
+    """Factorised steps by length (and kind), the least recently used dropped beyond a bound."""
+
+    def __init__(self, system: DescriptorSystem, order: int, stats: dict[str, float]) -> None:
+        self.system = system
+        self.order = order
+        self.stats = stats
+        self.cache: OrderedDict[tuple[float, str], PadeStep] = OrderedDict()
+
+    def __call__(self, h: float, kind: str = MAIN) -> PadeStep:
+        key = (float(f"{h:.13g}"), kind)
+        step = self.cache.get(key)
+        if step is None:
+            tic = time.process_time()
+            order = CHECK_ORDER if kind == LOW else self.order
+            step = PadeStep(self.system, h, order, diagonal=kind == DIAGONAL)
+            self.stats["factor_seconds"] += time.process_time() - tic
+            self.stats["factorisations"] += len(step.factors)
+            self.cache[key] = step
+            if len(self.cache) > 3 * CACHE_LENGTHS:
+                self.cache.popitem(last=False)
+        else:
+            self.cache.move_to_end(key)
+        return step
+
+
+@dataclass(frozen=True)
+class TransientResult:
+    """Outputs of a descriptor transient.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        Output times (s).
+    outputs : numpy.ndarray
+        ``(len(time), noutputs)``; NaN from where the run failed.
+    x_final : numpy.ndarray
+        Unknowns at the last time reached.
+    stats : dict
+        Steps, checks, rejections, factorisations, CPU seconds by phase.
+    status : str
+        ``ok``, or ``failed`` with ``message`` saying why.
+    message : str
+        Why the run stopped early.
+    """
+
+    time: NDArray[np.float64]
+    outputs: NDArray[np.float64]
+    x_final: NDArray[np.float64]
+    stats: dict[str, float]
+    status: str = "ok"
+    message: str = ""
+
+
+def run_transient(
+    system: DescriptorSystem,
+    waveforms: Sequence[Waveform],
+    times: NDArray[np.float64],
+    x0: NDArray[np.float64] | None = None,
+    *,
+    uic: bool = False,
+    rtol: float = DEFAULT_RTOL,
+    order: int = DEFAULT_ORDER,
+    where: str = "<netlist>",
+    progress: Callable[[float], None] | None = None,
+) -> TransientResult:
+    """Simulate from the DC operating point (or x0 / zero with ``uic``) to ``times[-1]``.
+
+    Each output interval is split at the breakpoints inside it, and each
+    piece into 2^level equal steps. A step is checked by comparing the
+    L-stable [11/12] result with the diagonal [12/12] one from the same
+    state: both are accurate to ~1e-14 wherever |hλ| ≲ 4, and differ by
+    the state's content in modes the step does not resolve (the first damps
+    them, the second keeps their modulus). The check runs on the first step
+    after every breakpoint (where the inputs excite fast modes) and on every
+    :data:`CHECK_INTERVAL`-th step otherwise (an unresolved, lightly damped
+    oscillation); a difference above ``rtol`` of the largest voltage (or
+    current) seen rejects the output interval, which is redone with twice
+    as many steps. A check passed by a factor 1000 lets the next interval
+    try half as many.
+
+    Parameters
+    ----------
+    system : DescriptorSystem
+    waveforms : sequence of Waveform
+        One per input, resolved; piecewise linear (DC, PULSE, PWL).
+    times : numpy.ndarray
+        Increasing output times (s), starting at 0.
+    x0 : numpy.ndarray, optional
+        Initial unknowns (used as given, with ``uic`` semantics).
+    uic : bool
+        Start from zero (or x0) instead of the DC operating point.
+    rtol : float
+        Step check tolerance (0: no check, one step per piece).
+    order : int
+        Padé denominator degree (even).
+    where : str
+        File name for messages.
+    progress : callable, optional
+        Called with the fraction done.
+
+    Returns
+    -------
+    TransientResult
+    """
+    values = SourceValues(waveforms)
+    if not values.piecewise_linear():
+        raise NetlistError(
+            "the descriptor transient needs piecewise-linear sources (DC, PULSE, PWL)",
+            SourceLocation(where, 0),
+        )
+    stats = {"steps": 0, "checks": 0, "rejected": 0, "factorisations": 0, "factor_seconds": 0.0}
+    started = time.process_time()
+    wall = time.perf_counter()
+    status, message = "ok", ""
+    with single_thread():
+        u_start = values(0.0)
+        if x0 is not None:
+            x = np.asarray(x0, dtype=float).copy()
+        elif uic:
+            x = np.zeros(system.size)
+        else:
+            x = dc_operating_point(system, u_start, where)
+        stats["dc_seconds"] = time.process_time() - started
+        out = np.full((times.size, system.C.shape[0]), np.nan)
+        jump = x0 is not None or uic
+        first = _consistent(system, x, u_start, float(times[1] - times[0]), order) if jump else x
+        out[0] = system.C @ first + system.D @ u_start
+        steppers = _Steppers(system, order, stats)
+        points = breakpoints(waveforms, float(times[-1]))
+        ctl = _Control(rtol, _Scale(first, system))
+        bp_index = 0
+        for k in range(1, times.size):
+            t_a, t_b = float(times[k - 1]), float(times[k])
+            span = t_b - t_a
+            lo = bp_index
+            while bp_index < points.size and points[bp_index] < t_b - SNAP * span:
+                bp_index += 1
+            inner = points[lo:bp_index]
+            inner = inner[inner > t_a + SNAP * span]
+            at_break = jump or (lo > 0 and abs(points[lo - 1] - t_a) <= SNAP * span)
+            while bp_index < points.size and points[bp_index] <= t_b + SNAP * span:
+                bp_index += 1  # a corner on t_b: the next interval starts at a breakpoint
+            pieces = np.concatenate([[t_a], inner, [t_b]])
+            try:
+                for j in range(pieces.size - 1):
+                    check = at_break if j == 0 else True
+                    x = _piece(x, float(pieces[j]), float(pieces[j + 1]), check, values, steppers, stats, ctl)
+            except _CheckFailed as exc:
+                status = "failed"
+                message = f"step check failing with steps of 2^-{MAX_LEVEL} of an interval at t = {exc} s"
+                break
+            jump = False
+            out[k] = system.C @ x + system.D @ values(t_b)
+            if not np.all(np.isfinite(out[k])):
+                status, message = "diverged", f"non-finite values at t = {t_b:g} s"
+                break
+            if progress is not None:
+                progress(k / (times.size - 1))
+    stats["seconds"] = time.perf_counter() - wall
+    stats["cpu_seconds"] = time.process_time() - started
+    stats["step_seconds"] = stats["cpu_seconds"] - stats["factor_seconds"] - stats["dc_seconds"]
+    return TransientResult(times, out, x, stats, status, message)
+
+
+class _Scale:
+    """The yardstick of the step check: the largest voltage and current seen.
+
+    Voltages and currents are made comparable through a typical node
+    conductance G (the median of the nonzero diagonal of A on node rows): a
+    current difference counts against max(|i|, G·|v|), a voltage difference
+    against max(|v|, |i|/G), so a class that is still zero (no current
+    flows at the operating point) is not judged against rounding noise.
+    """
+
+    def __init__(self, x: NDArray[np.float64], system: DescriptorSystem) -> None:
+        self.current_rows = np.arange(system.size) >= system.nnodes
+        diag = np.abs(system.A.diagonal()[: system.nnodes])
+        diag = diag[diag > 0]
+        self.g = float(np.median(diag)) if diag.size else 1.0
+        self.v = 0.0
+        self.i = 0.0
+        self.update(x)
+
+    def update(self, x: NDArray[np.float64]) -> None:
+        ax = np.abs(x)
+        if (~self.current_rows).any():
+            self.v = max(self.v, float(ax[~self.current_rows].max()))
+        if self.current_rows.any():
+            self.i = max(self.i, float(ax[self.current_rows].max()))
+
+    def error(self, dx: NDArray[np.float64]) -> float:
+        """Largest difference relative to the yardstick of its kind."""
+        ad = np.abs(dx)
+        v_ref = max(self.v, self.i / self.g, 1e-300)
+        i_ref = max(self.i, self.v * self.g, 1e-300)
+        worst = 0.0
+        for rows, ref in ((~self.current_rows, v_ref), (self.current_rows, i_ref)):
+            if rows.any():
+                worst = max(worst, float(ad[rows].max()) / ref)
+        return worst
+
+
+@dataclass
+class _Control:
+    """Step-size state carried from piece to piece."""
+
+    rtol: float
+    scale: _Scale
+    since_check: int = 0
+    level: int = 0
+    coarser: bool = False
+    wait: int = 0
+    patience: int = 1
+
+
+def _piece(
+    x: NDArray[np.float64],
+    t0: float,
+    t1: float,
+    check_first: bool,
+    values: SourceValues,
+    steppers: _Steppers,
+    stats: dict[str, float],
+    ctl: _Control,
+) -> NDArray[np.float64]:
+    """Step from t0 to t1 (no breakpoint inside) with steps (t1 − t0)/2^level, adapted by the check.
+
+    A failed check halves the step and retries; a check passed by a factor
+    10 doubles it at the next position a double step can start from (the
+    doubled step is checked).
+
+    Raises
+    ------
+    _CheckFailed
+        The step would have to be shorter than (t1 − t0)/2^MAX_LEVEL.
+    """
+    span = t1 - t0
+    pos = 0  # position in units of span / 2**MAX_LEVEL
+    end = 1 << MAX_LEVEL
+    level = 0 if check_first else ctl.level
+    must_check = kind_first = check_first
+    u0 = values(t0)
+    while pos < end:
+        trying = False
+        if ctl.coarser and ctl.wait <= 0 and level > 0 and pos % (1 << (MAX_LEVEL - level + 1)) == 0:
+            level -= 1  # the last checks passed by a wide margin: try a step twice as long
+            must_check = trying = True
+            ctl.coarser = False
+        n_units = 1 << (MAX_LEVEL - level)
+        h = span / (1 << level)
+        s1 = t1 if pos + n_units >= end else t0 + (pos + n_units) * span / end
+        u1 = values(s1)
+        slope = (u1 - u0) / h
+        x_new = steppers(h)(x, u0, slope)
+        stats["steps"] += 1
+        ctl.since_check += 1
+        if ctl.rtol > 0 and (must_check or ctl.since_check >= CHECK_INTERVAL):
+            stats["checks"] += 1
+            ctl.since_check = 0
+            # After a breakpoint: the lower-order L-stable approximant (the stiff modes the
+            # inputs excite are damped by both, by different factors); otherwise the diagonal
+            # one (an unresolved, lightly damped oscillation keeps its modulus there only).
+            other = steppers(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
+            ctl.scale.update(x_new)
+            err = ctl.scale.error(x_new - other)
+            if not err <= ctl.rtol:
+                stats["rejected"] += 1
+                if trying:  # wait twice as long before the next attempt
+                    ctl.patience = min(2 * ctl.patience, 1024)
+                    ctl.wait = ctl.patience
+                level += 1
+                if level > MAX_LEVEL:
+                    raise _CheckFailed(t0 + pos * span / end)
+                must_check = True
+                continue
+            must_check = kind_first = False
+            ctl.coarser = err < 0.1 * ctl.rtol
+            ctl.wait -= 1
+        x, u0, pos = x_new, u1, pos + n_units
+    ctl.scale.update(x)
+    ctl.level = level
+    return x
+
+
+class _CheckFailed(Exception):
+    """The step check kept failing down to the shortest step allowed."""
+
+
+def _consistent(
+    system: DescriptorSystem, x: NDArray[np.float64], u: NDArray[np.float64], h: float, order: int
+) -> NDArray[np.float64]:
+    """Unknowns at t = 0⁺ from a given (UIC) start, for the output at t = 0.
+
+    One L-stable step of 1e-9·h at constant input: the approximant vanishes
+    at infinity, so the algebraic unknowns come out consistent with the
+    inputs, while charges and fluxes move by 1e-9·h times their rate. (The
+    time stepping starts from the given unknowns themselves.)
+    """
+    return PadeStep(system, 1e-9 * h, order)(x, u, np.zeros_like(u))
