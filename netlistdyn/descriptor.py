@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from .errors import NetlistError, UsageError
 from .netlist import GROUND, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
+from .waveforms import Dc
 
 #: Element kinds the descriptor form assembles.
 SUPPORTED = frozenset(
@@ -125,7 +126,7 @@ class _Triplets:
         )
 
 
-def assemble(netlist: Netlist, outputs: Sequence[str] | None = None) -> DescriptorSystem:
+def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: bool = True) -> DescriptorSystem:
     """Assemble the MNA descriptor system of a linear netlist.
 
     Parameters
@@ -135,6 +136,10 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None) -> Descript
     outputs : sequence of str, optional
         ``v(n)``, ``v(a,b)``, ``i(X)`` (X not a capacitor); default every
         node voltage.
+    reduce : bool
+        Merge the nodes joined by 0 V sources and give the node of a
+        grounded supply its source's value (see :func:`reduce_sources`):
+        fewer unknowns and no zero diagonal from those sources.
 
     Returns
     -------
@@ -218,6 +223,12 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None) -> Descript
     E.eliminate_zeros()
     probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
     C, D = _output_rows(probes, netlist, index, branch_of, source_col, n)
+    if reduce:
+        needed = {p.element for p in probes if p.kind == "i"}
+        needed |= {e.control_source for e in netlist.elements if e.control_source}
+        E, A, B, C, D, names, n_nodes = reduce_sources(
+            netlist, E, A, B, C, D, names, n_nodes, branch_of, source_col, needed
+        )
     dynamic = int(np.count_nonzero(np.diff(E.tocsr().indptr)))
     return DescriptorSystem(
         E,
@@ -279,3 +290,119 @@ def initial_inputs(netlist: Netlist) -> NDArray[np.float64]:
     for j, elem in enumerate(netlist.sources):
         out[j] = elem.value if elem.waveform is None else float(np.asarray(elem.waveform(0.0)))
     return out
+
+
+def reduce_sources(
+    netlist: Netlist,
+    E: sp.csc_array,
+    A: sp.csc_array,
+    B: sp.csc_array,
+    C: sp.csr_array,
+    D: sp.csr_array,
+    names: list[str],
+    n_nodes: int,
+    branch_of: dict[str, int],
+    source_col: dict[str, int],
+    needed: set[str | None],
+) -> tuple[sp.csc_array, sp.csc_array, sp.csc_array, sp.csr_array, sp.csr_array, list[str], int]:
+    """Eliminate 0 V sources (node merges) and grounded supplies (known node voltages).
+
+    A source whose current is asked for or controls an F/H source is kept,
+    as is a supply whose node has a capacitor (its derivative would enter).
+    With ``x_full = T x + S u`` and P summing the KCL rows of merged nodes
+    (where the source currents cancel) and dropping the rows of fixed nodes
+    and removed sources: ``E ← P E T``, ``A ← P A T``, ``B ← P (B + A S)``,
+    ``C ← C T``, ``D ← D + C S``. The removed currents' columns are checked to
+    vanish from ``P A``.
+    """
+    nodes = netlist.nodes
+    index = {node: k for k, node in enumerate(nodes)}
+    parent = list(range(n_nodes + 1))  # the last entry stands for ground
+    ground = n_nodes
+
+    def find(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    def node_id(name: str) -> int:
+        return ground if name == GROUND else index[name]
+
+    removed: list[int] = []
+    for elem in netlist.elements:
+        if elem.kind is not Kind.VSOURCE or elem.key in needed or elem.value != 0:
+            continue
+        if elem.waveform is not None and not (isinstance(elem.waveform, Dc) and elem.waveform.value == 0):
+            continue
+        a, b = find(node_id(elem.nodes[0])), find(node_id(elem.nodes[1]))
+        if a == b:
+            continue  # a loop of shorts: left to MNA (singular, reported at the DC solve)
+        if a == ground:
+            a, b = b, a
+        parent[a] = b  # ground stays a root
+        removed.append(branch_of[elem.key])
+    shorted = set(removed)
+    has_cap = np.zeros(n_nodes + 1, dtype=bool)
+    for elem in netlist.elements:
+        if elem.kind is Kind.CAPACITOR:
+            for name in elem.nodes:
+                has_cap[find(node_id(name))] = True
+    fixed: dict[int, tuple[int, float]] = {}
+    for elem in netlist.elements:
+        if elem.kind is not Kind.VSOURCE or elem.key in needed or branch_of[elem.key] in shorted:
+            continue
+        a, b = find(node_id(elem.nodes[0])), find(node_id(elem.nodes[1]))
+        if b == ground and a != ground and a not in fixed and not has_cap[a]:
+            fixed[a] = (source_col[elem.key], 1.0)
+        elif a == ground and b != ground and b not in fixed and not has_cap[b]:
+            fixed[b] = (source_col[elem.key], -1.0)
+        else:
+            continue
+        removed.append(branch_of[elem.key])
+    if not removed:
+        return E, A, B, C, D, names, n_nodes
+    n_full = A.shape[0]
+    reduced: dict[int, int] = {}
+    new_names: list[str] = []
+    t_rows, t_cols, s_rows, s_cols, s_vals = [], [], [], [], []
+    for k in range(n_nodes):
+        root = find(k)
+        if root == ground:
+            continue
+        if root in fixed:
+            j, sign = fixed[root]
+            s_rows.append(k)
+            s_cols.append(j)
+            s_vals.append(sign)
+            continue
+        if root not in reduced:
+            reduced[root] = len(new_names)
+            new_names.append(names[root])
+        t_rows.append(k)
+        t_cols.append(reduced[root])
+    n_red_nodes = len(new_names)
+    gone = set(removed)
+    branch_rows = [k for k in range(n_nodes, n_full) if k not in gone]
+    for k in branch_rows:
+        t_rows.append(k)
+        t_cols.append(len(new_names))
+        new_names.append(names[k])
+    n_red = len(new_names)
+    T = sp.csc_array((np.ones(len(t_rows)), (t_rows, t_cols)), shape=(n_full, n_red))
+    S = sp.csc_array((s_vals, (s_rows, s_cols)), shape=(n_full, B.shape[1]))
+    P = sp.csr_array((np.ones(len(t_rows)), (t_cols, t_rows)), shape=(n_red, n_full))
+    PA = P @ A
+    leftover = PA[:, np.asarray(sorted(gone))]
+    if leftover.count_nonzero():  # pragma: no cover - guards the construction above
+        raise AssertionError("a removed source current did not cancel")
+    if (E @ S).count_nonzero():  # pragma: no cover - supplies at capacitor nodes are kept
+        raise AssertionError("a fixed node carries a capacitor")
+    E_red = sp.csc_array(P @ E @ T)
+    A_red = sp.csc_array(PA @ T)
+    B_red = sp.csc_array(P @ (B + A @ S))
+    C_red = sp.csr_array(C @ T)
+    D_red = sp.csr_array(D + C @ S)
+    for matrix in (E_red, A_red, B_red, C_red, D_red):
+        matrix.eliminate_zeros()
+    return E_red, A_red, B_red, C_red, D_red, new_names, n_red_nodes
