@@ -44,6 +44,9 @@ from .values import parse_number
 ROW_TOL = 1e-11
 #: Relative singular-value threshold for rank decisions on scaled rows.
 RANK_TOL = 1e-9
+#: Residual (of a unit row projected on the others) below which a row is dependent: true
+#: dependence leaves rounding (~1e-15 · cond); the rows are over balanced states.
+DEPENDENT_TOL = 1e-8
 #: Largest model whose conserved relations are looked for (a dense SVD), and the largest
 #: model ``--coordinates`` transforms (dense T A T⁻¹).
 RELATIONS_LIMIT = 400
@@ -191,32 +194,60 @@ def _scale(c: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     return float(np.abs(c) @ np.abs(b)) or 1.0
 
 
+def state_scale(model: StateSpaceModel) -> NDArray[np.float64]:
+    """Diagonal scaling s of the states (x = diag(s) y) that balances A (LAPACK gebal).
+
+    Rank and dependence decisions are made on ``y``: states of different units
+    (a momentum beside a spring force of a 1e5 N/m spring) otherwise make a
+    relation's small entries look like rounding.
+    """
+    n = model.nstates
+    if n == 0 or n > RELATIONS_LIMIT:
+        return np.ones(n)
+    from scipy.linalg import matrix_balance
+
+    _, (scale, _) = matrix_balance(model.A, permute=False, separate=True)
+    return np.asarray(scale, dtype=float)
+
+
+def _relations_y(model: StateSpaceModel, scale: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Conserved relations as rows over the balanced states y (x = diag(scale) y)."""
+    n = model.nstates
+    if n == 0 or n > RELATIONS_LIMIT:
+        return np.zeros((0, n))
+    stacked = np.hstack([model.A * scale[None, :] / scale[:, None], model.B / scale[:, None]])
+    norms = np.linalg.norm(stacked, axis=1)
+    norms[norms == 0] = 1.0
+    _, sv, vt = np.linalg.svd((stacked / norms[:, None]).T)
+    rank = int(np.sum(sv > RANK_TOL * (sv[0] if sv.size else 1.0)))
+    null = vt[rank:] / norms[None, :]  # r = c N⁻¹ for the row-normalised solution c
+    if null.shape[0] == 0:
+        return np.zeros((0, n))
+    rows = _echelon(null)
+    keep = [r for r in rows if np.sum(np.abs(r) > ROW_TOL * np.abs(r).max()) >= 2]
+    return np.array(keep).reshape(len(keep), n)
+
+
+def _to_x(rows_y: NDArray[np.float64], scale: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Relations over y as rows over x (r_x = r_y diag(1/scale)), largest entry 1."""
+    rows = rows_y / scale[None, :]
+    if rows.size:
+        rows = rows / np.abs(rows).max(axis=1, keepdims=True)
+    return rows
+
+
 def conserved_relations(model: StateSpaceModel) -> NDArray[np.float64]:
     """Rows r with r A = 0 and r B = 0 that tie two or more states (see the module notes).
 
     Returns
     -------
     numpy.ndarray
-        ``(k, nstates)``, each row scaled to a largest entry of 1, sparse
-        where possible (reduced row echelon form).
+        ``(k, nstates)`` over the model's states, each row scaled to a largest
+        entry of 1, sparse where possible (reduced row echelon form on the
+        balanced states).
     """
-    n = model.nstates
-    if n == 0:
-        return np.zeros((0, 0))
-    if n > RELATIONS_LIMIT:
-        return np.zeros((0, n))
-    stacked = np.hstack([model.A, model.B])
-    norms = np.linalg.norm(stacked, axis=1)
-    norms[norms == 0] = 1.0
-    scaled = stacked / norms[:, None]
-    _, s, vt = np.linalg.svd(scaled.T)
-    rank = int(np.sum(s > RANK_TOL * (s[0] if s.size else 1.0)))
-    null = vt[rank:] / norms[None, :]  # r = c D⁻¹ for the scaled solution c
-    if null.shape[0] == 0:
-        return np.zeros((0, n))
-    rows = _echelon(null)
-    keep = [r for r in rows if np.sum(np.abs(r) > ROW_TOL * np.abs(r).max()) >= 2]
-    return np.array(keep).reshape(len(keep), n)
+    scale = state_scale(model)
+    return _to_x(_relations_y(model, scale), scale)
 
 
 def _echelon(rows: NDArray[np.float64]) -> list[NDArray[np.float64]]:
@@ -273,7 +304,7 @@ def _dependent(
         if before.shape[0] == 0:
             continue
         coef, *_ = np.linalg.lstsq(before.T, unit[nb + k], rcond=None)
-        if np.linalg.norm(before.T @ coef - unit[nb + k]) < RANK_TOL**0.5:
+        if np.linalg.norm(before.T @ coef - unit[nb + k]) < DEPENDENT_TOL:
             out.append((k, coef[nb:] * scale[nb + k] / scale[nb : nb + k]))
     return out
 
@@ -309,11 +340,10 @@ class CoordinateChange:
         return self.model.states
 
 
-def _clean(matrix: NDArray[np.float64], cond: float) -> NDArray[np.float64]:
-    """Entries below 8·eps·cond·max|entry| are rounding of exact zeros: set them to 0."""
-    big = np.abs(matrix).max() if matrix.size else 0.0
+def _clean(matrix: NDArray[np.float64], bound: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Set to 0 the entries no larger than their rounding-error ``bound`` (same shape or a column)."""
     out = matrix.copy()
-    out[np.abs(out) <= 8 * np.finfo(float).eps * cond * big] = 0.0
+    out[np.abs(out) <= bound] = 0.0
     return out
 
 
@@ -354,31 +384,33 @@ def change_coordinates(
     rows = np.array([variable_row(model, v, "--coordinates") for v in variables]).reshape(
         len(variables), model.nstates
     )
-    relations = conserved_relations(model)
-    for k, coef in _dependent(rows, relations):
+    scale = state_scale(model)
+    rows_y = rows * scale[None, :]
+    relations = _relations_y(model, scale)
+    for k, coef in _dependent(rows_y, relations):
         terms = [names[j] for j in range(coef.size) if abs(coef[j]) > 1e-9] if coef.size else []
         why = f"a combination of {', '.join(terms)}" if terms else "zero for every state"
         raise UsageError(f"--coordinates: {names[k]} is {why}: the coordinates are dependent")
     n = model.nstates
     if len(variables) < n:
-        basis = _null_space(relations) if relations.shape[0] else np.eye(n)
-        square = rows @ basis
+        basis = _echelon_null_space(relations) if relations.shape[0] else np.eye(n)
+        square = rows_y @ basis
         if (
             square.shape[0] != square.shape[1]
-            or np.linalg.matrix_rank(square, tol=RANK_TOL * np.abs(square).max()) < square.shape[0]
+            or np.linalg.matrix_rank(_unit_rows(square), tol=RANK_TOL) < square.shape[0]
         ):
-            missing = _null_space(np.vstack([rows, relations]))
+            known = np.vstack([rows_y, relations])
+            missing = _null_space(known) * scale[:, None]
             what = "; ".join(
                 f"one involving {_combination(missing[:, j], model.states)}" for j in range(missing.shape[1])
             )
-            known = np.vstack([rows, relations])
             rank = np.linalg.matrix_rank(_unit_rows(known), tol=RANK_TOL)
             helpful = []
             for cand in candidates:
                 if cand.name in names or cand.output not in model.outputs:
                     continue
                 try:
-                    row = variable_row(model, cand, "--coordinates")
+                    row = variable_row(model, cand, "--coordinates") * scale
                 except UsageError:
                     continue
                 if np.linalg.matrix_rank(_unit_rows(np.vstack([known, row])), tol=RANK_TOL) > rank:
@@ -391,14 +423,25 @@ def change_coordinates(
     else:
         relations = np.zeros((0, n))
         basis = np.eye(n)
-        square = rows
-    cond = float(np.linalg.cond(square))
-    inverse = basis @ np.linalg.inv(square)  # x = inverse · z on the relations' subspace
-    A = _clean(rows @ model.A @ inverse, cond)
-    B = _clean(rows @ model.B, cond)
+        square = rows_y
+    # x = diag(scale) · basis · square⁻¹ · z on the relations' subspace.
+    inverse = (basis * scale[:, None]) @ np.linalg.inv(square)
+    # cond(T) over the model's own states (restricted to the subspace, orthonormal basis).
+    orthonormal, _ = np.linalg.qr(basis * scale[:, None])
+    cond = float(np.linalg.cond(rows @ orthonormal))
+    # Rounding bounds, to print exact zeros as 0: T⁻¹ = diag(scale)·basis·square⁻¹ with the
+    # balanced square inverted to about eps·cond(square)·max|basis·square⁻¹|; an error δ in
+    # row k of the balanced inverse reaches T A T⁻¹'s row i as (|T||A|)_ik·scale_k·δ.
+    # The factor 64·n covers the rounding of the SVD basis of the relations' subspace too
+    # (measured up to ~10 n·eps on spring-mass chains).
+    eps = 64 * max(n, 1) * np.finfo(float).eps
+    inv_y = basis @ np.linalg.inv(square)
+    delta = eps * float(np.linalg.cond(square)) * float(np.abs(inv_y).max())
+    A = _clean(rows @ model.A @ inverse, (np.abs(rows) @ np.abs(model.A) @ scale)[:, None] * delta)
+    B = _clean(rows @ model.B, eps * (np.abs(rows) @ np.abs(model.B)))
     outs = list(keep_outputs) if keep_outputs is not None else list(model.outputs)
     shown = select_outputs(model, outs)
-    C = _clean(shown.C @ inverse, cond)
+    C = _clean(shown.C @ inverse, (np.abs(shown.C) @ scale)[:, None] * delta)
     new = replace(
         shown,
         A_sparse=sp.csr_array(A),
@@ -407,7 +450,28 @@ def change_coordinates(
         states=tuple(names),
         info=replace(model.info, integrators=()),
     )
-    return CoordinateChange(new, model, rows, cond, relations)
+    return CoordinateChange(new, model, rows, cond, _to_x(relations, scale))
+
+
+def _echelon_null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Basis (columns) of {y : rows y = 0} for rows in reduced echelon form.
+
+    One vector per non-pivot column j: e_j minus each row's entry in column j
+    over its pivot, at that pivot. Entries that are exactly zero in the rows
+    stay exactly zero in the basis (an SVD basis would mix them with rounding).
+    """
+    n = rows.shape[1]
+    pivots = [int(np.flatnonzero(r)[0]) for r in rows]
+    basis = []
+    for j in range(n):
+        if j in pivots:
+            continue
+        v = np.zeros(n)
+        v[j] = 1.0
+        for r, p in zip(rows, pivots, strict=True):
+            v[p] = -r[j] / r[p]
+        basis.append(v)
+    return np.array(basis).T.reshape(n, len(basis))
 
 
 def _unit_rows(rows: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -546,7 +610,8 @@ def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> ND
         rows.append(row)
         values.append(cond.value)
         labels.append(cond.text)
-    R = np.array(rows)
+    scale = state_scale(model)
+    R = np.array(rows) * scale[None, :]  # over the balanced states y, x = diag(scale) y
     for k, _ in _dependent(R):
         others = ", ".join(labels[:k])
         raise UsageError(
@@ -555,7 +620,7 @@ def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> ND
             else f"--ic {labels[k]}: does not involve any state"
         )
     touched = _touched(R)
-    relations = conserved_relations(model)
+    relations = _relations_y(model, scale)
     used = np.zeros(relations.shape[0], dtype=bool)
     grew = True
     while grew:
@@ -569,9 +634,9 @@ def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> ND
     rhs = np.concatenate([values, np.zeros(int(used.sum()))])
     cols = np.flatnonzero(touched)
     sub = system[:, cols]
-    rank = np.linalg.matrix_rank(sub / np.linalg.norm(sub, axis=1)[:, None], tol=RANK_TOL)
+    rank = np.linalg.matrix_rank(_unit_rows(sub), tol=RANK_TOL)
     if rank < cols.size:
-        free = _null_space(sub)
+        free = _null_space(sub) * scale[cols][:, None]
         states = [model.states[c] for c in cols]
         what = "; ".join(_combination(free[:, j], states) for j in range(free.shape[1]))
         raise UsageError(
@@ -585,7 +650,7 @@ def initial_state(model: StateSpaceModel, conditions: Sequence[Condition]) -> ND
             "(a position and the spring force that measures it)"
         )
     x0 = np.zeros(n)
-    x0[cols] = solution
+    x0[cols] = solution * scale[cols]
     return x0
 
 

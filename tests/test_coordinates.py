@@ -353,3 +353,53 @@ def test_large_models_keep_state_name_ics_and_refuse_coordinates() -> None:
     assert np.count_nonzero(prepared.x0) == 2
     with pytest.raises(Exception, match="for models of up to 400 states"):
         prepare(net, None, "v(n1),v(n2)")
+
+
+# --- property: a chain of blocks in positions and velocities is M q'' + D q' + K q = F ----------
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+CHAIN_RTOL = 1e-9  # relative to each matrix's largest entry: cond(T) reaches ~1e6 for 1e-3 kg beside 1e3 kg
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(1e-3, 1e3),  # mass [kg]
+            st.floats(1e-1, 1e5),  # spring to the previous block (or the wall) [N/m]
+            st.one_of(st.just(0.0), st.floats(1e-3, 1e2)),  # damper beside it [N s/m]; 0 = none
+        ),
+        min_size=1,
+        max_size=3,
+    )
+)
+def test_chain_of_blocks_in_positions_and_velocities(blocks) -> None:
+    lines = ["chain"]
+    n = len(blocks)
+    for j, (m, k, d) in enumerate(blocks, start=1):
+        left = "0" if j == 1 else f"b{j - 1}"
+        lines += [f"MASS m{j} b{j} {m!r}", f"SPRING k{j} b{j} {left} {k!r}"]
+        if d > 0:
+            lines.append(f"DAMPER d{j} b{j} {left} {d!r}")
+        lines.append(f"FORCE F{j} b{j} 0 DC 1")
+    coords = ",".join([f"x(b{j})" for j in range(1, n + 1)] + [f"v(b{j})" for j in range(1, n + 1)])
+    change = prepare(parse_text("\n".join(lines) + "\n"), None, coords).change
+    M = np.diag([b[0] for b in blocks])
+    K, D = np.zeros((n, n)), np.zeros((n, n))
+    for j, (_, k, d) in enumerate(blocks):
+        for matrix, value in ((K, k), (D, d)):
+            matrix[j, j] += value
+            if j:
+                matrix[j - 1, j - 1] += value
+                matrix[j, j - 1] -= value
+                matrix[j - 1, j] -= value
+    A, B = second_order(M, K, D, np.eye(n))
+    np.testing.assert_allclose(change.model.A, A, rtol=0, atol=CHAIN_RTOL * np.abs(A).max())
+    # Entries are also right relative to themselves (a damping beside a stiff spring is small),
+    # and the structural zeros are printed as zeros, no genuine entry is taken for rounding.
+    nonzero = A != 0
+    np.testing.assert_array_equal(change.model.A != 0, nonzero)
+    np.testing.assert_allclose(change.model.A[nonzero], A[nonzero], rtol=CHAIN_RTOL)
+    np.testing.assert_allclose(change.model.B, B, rtol=0, atol=CHAIN_RTOL * np.abs(B).max())
