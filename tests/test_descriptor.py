@@ -68,6 +68,21 @@ def test_descriptor_transient_matches_exact_model(name: str) -> None:
     assert error < 1e-9, f"{name}: {error:.3g} of the largest output"
 
 
+def test_unreachable_tolerance_is_raised() -> None:
+    """rtol 1e-16 would ask two approximants to agree below rounding: it is raised to MIN_RTOL and
+    the run completes, as accurate as at that tolerance (1e-9 of the peak against the exact model)."""
+    netlist = parse_file(NETLISTS / "circuit2.cir")
+    model = compile_netlist(netlist)
+    times = np.linspace(0.0, 20.0, 41)
+    signals = input_signals(netlist, 0.5, 20.0)
+    run = transient.run_transient(
+        descriptor.assemble(netlist), signals.waveforms, times, uic=True, rtol=1e-16
+    )
+    assert run.status == "ok", run.message
+    exact = integrators.run(model, signals, times, "exact", 1e-12, None, None, False, None)
+    assert np.abs(run.outputs[1:] - exact.outputs[1:]).max() < 1e-9 * np.abs(exact.outputs).max()
+
+
 def _grid_text(rng: np.random.Generator, size: int) -> str:
     """Two stacked resistive layers joined by 0 V vias, grounded supplies behind R (and L), loads."""
     lines = ["two-layer grid"]
