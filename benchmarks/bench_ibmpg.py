@@ -128,9 +128,7 @@ def run_ngspice(netlist: Path, work: Path) -> tuple[Path, float, float]:
 def main() -> int:
     """Run the comparison and print a Markdown table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--rtol", default="1e-10,1e-12", help="our tolerances; the last is the reference"
-    )
+    parser.add_argument("--rtol", default="1e-10,1e-12", help="our tolerances; the last is the reference")
     parser.add_argument("--ngspice", action="store_true", help="also run ngspice -b (several CPU minutes)")
     parser.add_argument("--ngspice-log", type=Path, default=None, help="log of an earlier ngspice -b run")
     parser.add_argument("--ngspice-seconds", default=None, help="CPU,wall of that earlier run")
