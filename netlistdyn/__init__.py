@@ -15,6 +15,8 @@ file; parameters are numbers or SPICE numbers (``"10u"``).
 
 from __future__ import annotations
 
+import sys as _sys
+import types as _types
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -130,3 +132,22 @@ def symbolic(
 
     with api_errors(params):
         return symbolic_model(read_netlist(netlist, params), outputs, keep)
+
+
+class _Package(_types.ModuleType):
+    """The package module, keeping :func:`symbolic` bound to its name.
+
+    The stage ``netlistdyn/symbolic.py`` needs sympy (optional), so it cannot
+    be imported eagerly like the other stages named after API functions; when
+    it is first imported, Python would bind the submodule over the function.
+    The submodule stays reachable as ``netlistdyn.symbolic`` in ``sys.modules``
+    (``from netlistdyn.symbolic import symbolic_model`` works).
+    """
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if name == "symbolic" and isinstance(value, _types.ModuleType) and callable(self.__dict__.get(name)):
+            return
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package

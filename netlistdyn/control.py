@@ -42,7 +42,7 @@ from .model import CompileInfo, StateSpaceModel
 
 EPS = float(np.finfo(float).eps)
 #: Smallest cosine tolerance of the PBH tests (scale-free: see the module docstring).
-RANK_RTOL = 1e-8
+RANK_RTOL = 1e-11
 #: Largest model for --control and --minimal (one SVD of the equilibrated A − λI per eigenvalue).
 CONTROL_STATE_LIMIT = 200
 #: Singular values of the equilibrated A − λI below this fraction of the largest span the eigenspace.
@@ -720,7 +720,7 @@ def _siso(
         dc = math.inf
     elif nr == 0:
         dc = d
-    elif at_origin:
+    elif any(z == 0 for z in zeros):
         dc = 0.0
     else:
         dc = float(d - cr @ np.linalg.solve(Ar, br))
@@ -902,11 +902,89 @@ def observer_form(model: StateSpaceModel, output: int | None = None) -> Canonica
     raise UsageError("observer form: no output observes every state (see --control)")
 
 
-def _companion(
-    kind: str, signal: str, T: np.ndarray, model: StateSpaceModel, transpose: bool
-) -> CanonicalForm:
+def _luenberger_columns(A: np.ndarray, C: np.ndarray) -> list[tuple[int, int]]:
+    """(output, power) of the columns (Aᵀ)^k cᵢᵀ kept, scanned as c₁ᵀ, c₂ᵀ, …, Aᵀc₁ᵀ, Aᵀc₂ᵀ, ….
+
+    A column is kept when it is independent of those kept before (relative
+    residual of its orthogonal projection above 1e-8, in Curtis–Reid-scaled
+    state coordinates, so the choice does not depend on the units); once
+    (Aᵀ)^k cᵢᵀ is dependent, the higher powers of that output are skipped.
+    """
+    n, p = A.shape[0], C.shape[0]
+    S = state_scaling(A, np.zeros((n, 0)), C)
+    A_s, C_s = A * S[None, :] / S[:, None], C * S[None, :]
+    kept: list[tuple[int, int]] = []
+    basis = np.zeros((n, 0))
+    active = [bool(np.any(C_s[i])) for i in range(p)]
+    vectors = [C_s[i].copy() for i in range(p)]
+    for power in range(n):
+        for i in range(p):
+            if not active[i] or len(kept) == n:
+                continue
+            v = vectors[i]
+            residual = v - basis @ (basis.T @ v)
+            if np.linalg.norm(residual) > 1e-8 * np.linalg.norm(v):
+                kept.append((i, power))
+                basis = np.hstack([basis, (residual / np.linalg.norm(residual))[:, None]])
+                vectors[i] = A_s.T @ v
+            else:
+                active[i] = False
+    return kept
+
+
+def observer_form_multi(model: StateSpaceModel) -> CanonicalForm:
+    """Observer canonical form from all outputs, built as the lecture notes build it.
+
+    The columns of the controllability matrix of (Aᵀ, Cᵀ) are scanned in the
+    order c₁ᵀ, c₂ᵀ, …, Aᵀc₁ᵀ, … and the independent ones kept (Luenberger
+    indices d₁, d₂, …); L = [c₁ᵀ, Aᵀc₁ᵀ, …, (Aᵀ)^(d₁−1)c₁ᵀ, c₂ᵀ, …] (for the
+    double inverted pendulum on a cart: [c₁ᵀ, Aᵀc₁ᵀ, c₂ᵀ, Aᵀc₂ᵀ, c₃ᵀ, Aᵀc₃ᵀ]). With q the last
+    row of L⁻¹ and T_c = [q; qAᵀ; …; q(Aᵀ)ⁿ⁻¹], Â = (T_cᵀ)⁻¹ A T_cᵀ is a
+    companion matrix (characteristic polynomial in its last column) and
+    Ĉ = C T_cᵀ. Here x̂ = T x with T = (T_cᵀ)⁻¹.
+
+    Raises
+    ------
+    UsageError
+        When the outputs do not observe every state, or T_c is singular
+        (A has a repeated eigenvalue with more than one eigenvector).
+    """
+    from .errors import UsageError
+
+    _check_canonical_size(model)
+    A, C = model.A, model.C
     n = model.nstates
-    T_inv = np.linalg.inv(T)
+    kept = _luenberger_columns(A, C)
+    if len(kept) < n:
+        raise UsageError("multi-output observer form: the outputs do not observe every state (see --control)")
+    order = sorted(kept)  # by output, then power: [c1, A'c1, ..., c2, A'c2, ...]
+    L = np.column_stack([np.linalg.matrix_power(A.T, k) @ C[i] for i, k in order])
+    q = np.linalg.inv(L)[-1]
+    rows = [q]
+    for _ in range(n - 1):
+        rows.append(rows[-1] @ A.T)
+    T_c = np.array(rows)
+    if deflate(A, q[:, None], np.zeros((0, n)), controllable=True, observable=False).uncontrollable:
+        raise UsageError("multi-output observer form: [q; qAᵀ; …] is singular (A is not cyclic)")
+    indices = ", ".join(
+        f"{model.outputs[i]}: {sum(1 for j, _ in kept if j == i)}" for i in sorted({i for i, _ in kept})
+    )
+    return _companion(
+        "observer", f"all outputs (indices {indices})", np.linalg.inv(T_c.T), model, True, T_c.T
+    )
+
+
+def _companion(
+    kind: str,
+    signal: str,
+    T: np.ndarray,
+    model: StateSpaceModel,
+    transpose: bool,
+    T_inv: np.ndarray | None = None,
+) -> CanonicalForm:
+    """The form x̃ = T x; ``T_inv`` when known exactly (a Krylov matrix), else inverted here."""
+    n = model.nstates
+    T_inv = np.linalg.inv(T) if T_inv is None else T_inv
     A_t = T @ model.A @ T_inv
     pattern = np.eye(n, k=1)  # controller: superdiagonal ones, free last row
     free = np.zeros((n, n), dtype=bool)

@@ -241,10 +241,37 @@ class StateSpaceModel:
         return g + self.D + s * self.D1
 
 
+def _refuse_input_derivative(model: StateSpaceModel, target: str) -> None:
+    """Raise when D1 ≠ 0: a proper state-space object cannot carry y = … + D1 u'."""
+    if not model.has_input_derivative:
+        return
+    from .errors import UsageError
+
+    rows, cols = np.nonzero(model.D1)
+    terms = ", ".join(
+        f"{model.outputs[i]} has {model.D1[i, j]:.6g}·d({model.inputs[j]})/dt"
+        for i, j in zip(rows.tolist(), cols.tolist(), strict=True)
+    )
+    raise UsageError(
+        f"{target} cannot represent an output that depends on an input's derivative ({terms}); "
+        "converting would silently drop that term. Choose other outputs, or use "
+        "model.transfer_function(s), which includes s·D1"
+    )
+
+
 def to_scipy(model: StateSpaceModel) -> object:
-    """The model as ``scipy.signal.StateSpace`` (labels are not carried by scipy)."""
+    """The model as ``scipy.signal.StateSpace`` (labels are not carried by scipy).
+
+    Raises
+    ------
+    UsageError
+        When an output depends on an input's derivative (D1 ≠ 0): scipy's
+        proper state-space form has no such term, and dropping it would give a
+        different system.
+    """
     import scipy.signal as sig
 
+    _refuse_input_derivative(model, "scipy.signal.StateSpace")
     return sig.StateSpace(np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D))
 
 
@@ -255,7 +282,11 @@ def to_control(model: StateSpaceModel) -> object:
     ------
     ImportError
         When python-control is not installed (``pip install control``).
+    UsageError
+        When an output depends on an input's derivative (D1 ≠ 0), which
+        ``control.StateSpace`` cannot represent.
     """
+    _refuse_input_derivative(model, "control.StateSpace")
     try:
         import control
     except ImportError:

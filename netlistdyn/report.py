@@ -526,15 +526,19 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
 
 def symbolic_dict(model: Any) -> dict[str, Any]:
     """JSON for ``analyze --symbolic``: entries as sympy strings (``sympy.sympify`` reads them)."""
-    from .symbolic import entry_strings
+    from .symbolic import entry_strings, json_names
 
+    names = json_names(list(model.symbols))
     doc: dict[str, Any] = {
-        "symbols": {name: value for name, (_, value) in model.symbols.items()},
+        "symbols": {names[name]: value for name, (_, value) in model.symbols.items()},
     }
+    renamed = {names[name]: name for name in model.symbols if names[name] != name}
+    if renamed:  # E, I, pi, X1.R1 … would not read back as symbols
+        doc["symbol_elements"] = renamed
     for key in ("A", "B", "C", "D"):
-        doc[key] = entry_strings(getattr(model, key))
+        doc[key] = entry_strings(getattr(model, key), names)
     if not model.D1.is_zero_matrix:
-        doc["D1"] = entry_strings(model.D1)
+        doc["D1"] = entry_strings(model.D1, names)
     return doc
 
 
@@ -568,12 +572,16 @@ def symbolic_text(model: Any) -> str:
     return "\n".join(out) + "\n"
 
 
+#: The canonical forms of ``analyze --canonical``, in order (JSON keys).
+CANONICAL_KINDS = ("controller", "observer", "observer_all_outputs")
+
+
 def canonical_forms(model: StateSpaceModel) -> list[Any]:
-    """Controller and observer forms, or the reason each is unavailable (a string)."""
+    """Controller, observer (one output) and observer (all outputs) forms, or why each is unavailable."""
     from . import control
 
     out: list[Any] = []
-    for build in (control.controller_form, control.observer_form):
+    for build in (control.controller_form, control.observer_form, control.observer_form_multi):
         try:
             out.append(build(model))
         except UsageError as exc:
@@ -584,7 +592,7 @@ def canonical_forms(model: StateSpaceModel) -> list[Any]:
 def canonical_dict(forms: Sequence[Any]) -> dict[str, Any]:
     """JSON for ``analyze --canonical``."""
     doc: dict[str, Any] = {}
-    for kind, form in zip(("controller", "observer"), forms, strict=True):
+    for kind, form in zip(CANONICAL_KINDS, forms, strict=True):
         if isinstance(form, str):
             doc[kind] = {"unavailable": form}
             continue
@@ -601,16 +609,17 @@ def canonical_dict(forms: Sequence[Any]) -> dict[str, Any]:
 
 
 def canonical_text(model: StateSpaceModel, forms: Sequence[Any]) -> str:
-    """Both companion forms with their transformation's condition number."""
+    """The companion forms with their transformation's condition number."""
     out: list[str] = []
-    for kind, form in zip(("controller", "observer"), forms, strict=True):
+    for kind, form in zip(CANONICAL_KINDS, forms, strict=True):
         out.append("")
+        title = kind.replace("_", " ").replace("all outputs", "(all outputs)")
         if isinstance(form, str):
-            out.append(f"{kind} form: unavailable ({form})")
+            out.append(f"{title} form: unavailable ({form})")
             continue
-        via = "input" if kind == "controller" else "output"
+        via = "input " if kind == "controller" else ("output " if kind == "observer" else "")
         out.append(
-            f"{kind} form (x̃ = T x, from {via} {form.signal}; cond(T) = {form.condition:.3g}, "
+            f"{title} form (x̃ = T x, from {via}{form.signal}; cond(T) = {form.condition:.3g}, "
             f"companion pattern residual {form.residual:.2g}):"
         )
         labels = [f"x̃{k + 1}" for k in range(model.nstates)]

@@ -17,6 +17,8 @@ which is how ``.param`` values are substituted.
 
 from __future__ import annotations
 
+import keyword
+import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -414,6 +416,52 @@ def _tidy(expr: sympy.Expr) -> sympy.Expr:
     return sympy.factor(expr)
 
 
-def entry_strings(matrix: sympy.MatrixBase) -> list[list[str]]:
-    """Entries as strings (``sympy.sstr``) for reports and JSON."""
+def _reads_back(name: str) -> bool:
+    """True when ``sympy.sympify(name)`` is the plain symbol of that name (not E, I, pi, beta, …)."""
+    if not name.isidentifier() or keyword.iskeyword(name):
+        return False
+    try:
+        value = sympy.sympify(name)
+    except (sympy.SympifyError, SyntaxError, TypeError, AttributeError):
+        return False
+    return isinstance(value, sympy.Symbol) and value.name == name
+
+
+def json_names(names: Collection[str]) -> dict[str, str]:
+    """An identifier for each symbol name that ``sympy.sympify`` reads back as that symbol.
+
+    Names that already do (R1, C1, l_r1) keep themselves; the others (E, I,
+    pi, S, beta, X1.R1) get their non-word characters replaced by ``_`` and
+    one or more trailing ``_`` until the identifier reads back and is unique.
+    """
+    out: dict[str, str] = {}
+    taken = {n for n in names if _reads_back(n)}
+    for name in names:
+        if name in taken and name not in out.values():
+            out[name] = name
+            continue
+        base = re.sub(r"\W", "_", name)
+        if not base or base[0].isdigit():
+            base = "s_" + base
+        candidate = base + "_"
+        while candidate in taken or not _reads_back(candidate):
+            candidate += "_"
+        taken.add(candidate)
+        out[name] = candidate
+    return out
+
+
+def entry_strings(matrix: sympy.MatrixBase, names: Mapping[str, str] | None = None) -> list[list[str]]:
+    """Entries as strings (``sympy.sstr``) for reports and JSON.
+
+    ``names`` renames symbols (see :func:`json_names`) so that
+    ``sympy.sympify`` reads every string back with the same free symbols.
+    """
+    if names:
+        swap = {
+            sym: sympy.Symbol(names[sym.name], **sym.assumptions0)
+            for sym in matrix.free_symbols
+            if isinstance(sym, sympy.Symbol) and names.get(sym.name, sym.name) != sym.name
+        }
+        matrix = matrix.xreplace(swap)
     return [[sympy.sstr(matrix[i, j]) for j in range(matrix.cols)] for i in range(matrix.rows)]
