@@ -224,7 +224,16 @@ def _relations_y(model: StateSpaceModel, scale: NDArray[np.float64]) -> NDArray[
     if null.shape[0] == 0:
         return np.zeros((0, n))
     rows = _echelon(null)
-    keep = [r for r in rows if np.sum(np.abs(r) > ROW_TOL * np.abs(r).max()) >= 2]
+    a_y, b_y = stacked[:, :n], stacked[:, n:]
+    keep = []
+    for r in rows:
+        if np.sum(np.abs(r) > ROW_TOL * np.abs(r).max()) < 2:
+            continue
+        # Only a relation that holds to rounding, entry by entry, is imposed.
+        size = np.concatenate([np.abs(r) @ np.abs(a_y), np.abs(r) @ np.abs(b_y)])
+        residual = np.abs(np.concatenate([r @ a_y, r @ b_y]))
+        if np.all(residual <= 1e-10 * np.maximum(size, np.finfo(float).tiny)):
+            keep.append(r)
     return np.array(keep).reshape(len(keep), n)
 
 
@@ -340,6 +349,11 @@ class CoordinateChange:
         return self.model.states
 
 
+def _row_max(matrix: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each row's largest entry, as a column."""
+    return matrix.max(axis=1, keepdims=True) if matrix.size else np.zeros((matrix.shape[0], 1))
+
+
 def _clean(matrix: NDArray[np.float64], bound: NDArray[np.float64]) -> NDArray[np.float64]:
     """Set to 0 the entries no larger than their rounding-error ``bound`` (same shape or a column)."""
     out = matrix.copy()
@@ -429,19 +443,15 @@ def change_coordinates(
     # cond(T) over the model's own states (restricted to the subspace, orthonormal basis).
     orthonormal, _ = np.linalg.qr(basis * scale[:, None])
     cond = float(np.linalg.cond(rows @ orthonormal))
-    # Rounding bounds, to print exact zeros as 0: T⁻¹ = diag(scale)·basis·square⁻¹ with the
-    # balanced square inverted to about eps·cond(square)·max|basis·square⁻¹|; an error δ in
-    # row k of the balanced inverse reaches T A T⁻¹'s row i as (|T||A|)_ik·scale_k·δ.
-    # The factor 64·n covers the rounding of the SVD basis of the relations' subspace too
-    # (measured up to ~10 n·eps on spring-mass chains).
+    # Entries within rounding of zero are printed as 0: below 64·n·eps times the largest
+    # product |T_ik||A_kl||T⁻¹_lj| of their row (the size of the terms that cancelled).
     eps = 64 * max(n, 1) * np.finfo(float).eps
-    inv_y = basis @ np.linalg.inv(square)
-    delta = eps * float(np.linalg.cond(square)) * float(np.abs(inv_y).max())
-    A = _clean(rows @ model.A @ inverse, (np.abs(rows) @ np.abs(model.A) @ scale)[:, None] * delta)
-    B = _clean(rows @ model.B, eps * (np.abs(rows) @ np.abs(model.B)))
+    A = _clean(rows @ model.A @ inverse, eps * _row_max(np.abs(rows) @ np.abs(model.A) @ np.abs(inverse)))
+    B = _clean(rows @ model.B, eps * _row_max(np.abs(rows) @ np.abs(model.B)))
+    _check_same_response(model, rows, A, B)
     outs = list(keep_outputs) if keep_outputs is not None else list(model.outputs)
     shown = select_outputs(model, outs)
-    C = _clean(shown.C @ inverse, (np.abs(shown.C) @ scale)[:, None] * delta)
+    C = _clean(shown.C @ inverse, eps * _row_max(np.abs(shown.C) @ np.abs(inverse)))
     new = replace(
         shown,
         A_sparse=sp.csr_array(A),
@@ -453,23 +463,55 @@ def change_coordinates(
     return CoordinateChange(new, model, rows, cond, _to_x(relations, scale))
 
 
-def _echelon_null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Basis (columns) of {y : rows y = 0} for rows in reduced echelon form.
+#: Largest relative difference allowed between the responses of the presented model and the
+#: compiled one (with the coordinates as outputs); beyond it the change is refused.
+RESPONSE_RTOL = 1e-6
 
-    One vector per non-pivot column j: e_j minus each row's entry in column j
-    over its pivot, at that pivot. Entries that are exactly zero in the rows
-    stay exactly zero in the basis (an SVD basis would mix them with rounding).
+
+def _check_same_response(
+    model: StateSpaceModel, rows: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64]
+) -> None:
+    """Refuse a change of coordinates whose model does not respond as the compiled one.
+
+    Compares rows (sI − A)⁻¹ B with (sI − T A T⁻¹)⁻¹ T B at three complex
+    frequencies scaled to the model (an a-posteriori check: a rank decision
+    gone wrong, such as a spurious relation, changes the response at O(1)).
     """
+    n = model.nstates
+    if n == 0 or model.ninputs == 0:
+        return
+    rho = max(float(np.abs(model.A).max()), float(np.abs(A).max()), 1e-300)
+    for s in (rho * (0.1 + 0.3j), rho * (0.5 + 1.7j), 2.0 * rho + 0.9j * rho):
+        old = rows @ np.linalg.solve(s * np.eye(n) - model.A, model.B)
+        new = np.linalg.solve(s * np.eye(A.shape[0]) - A, B)
+        scale = max(float(np.abs(old).max()), 1e-300)
+        if float(np.abs(new - old).max()) > RESPONSE_RTOL * scale:
+            raise UsageError(
+                "--coordinates: the model in these variables does not reproduce the compiled model's "
+                "response (the states are too badly scaled for this change of variables)"
+            )
+
+
+def _echelon_null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Basis (columns) of {y : rows y = 0}, one vector per free column.
+
+    Pivot columns P are chosen by QR with column pivoting; each free column j
+    gives e_j − (rows[:, P]⁻¹ rows[:, j]) on P. Free columns other than j stay
+    exactly zero (an SVD basis would mix every column with rounding).
+    """
+    from scipy.linalg import qr
+
     n = rows.shape[1]
-    pivots = [int(np.flatnonzero(r)[0]) for r in rows]
+    k = rows.shape[0]
+    _, _, perm = qr(rows, pivoting=True, mode="economic")
+    pivots = list(perm[:k])
     basis = []
     for j in range(n):
         if j in pivots:
             continue
         v = np.zeros(n)
         v[j] = 1.0
-        for r, p in zip(rows, pivots, strict=True):
-            v[p] = -r[j] / r[p]
+        v[pivots] = -np.linalg.solve(rows[:, pivots], rows[:, j])
         basis.append(v)
     return np.array(basis).T.reshape(n, len(basis))
 
