@@ -85,6 +85,14 @@ class Element:
         Mechanical keyword (``MASS``, ``SPRING``...) the element came from.
     rod : RodSpec, optional
         For ``ROD`` elements: length, g and orientation.
+    ic : float, optional
+        ``IC=`` of a capacitor (V) or inductor (A): its initial state for
+        ``simulate`` and ``validate`` (``None``: not given).
+    expression : str, optional
+        For elements compiled from a behavioural source (``B``, or ``E``/``G``
+        with ``value=``/``vol=``/``cur=``): the source's expression text, in
+        which this element is one linear term. The place where nonlinear
+        sources will carry their expression.
     """
 
     kind: Kind
@@ -98,6 +106,8 @@ class Element:
     waveform: Waveform | None = None
     keyword: str | None = None
     rod: RodSpec | None = None
+    ic: float | None = None
+    expression: str | None = None
 
     @property
     def key(self) -> str:
@@ -124,6 +134,44 @@ class TranSpec:
     tstart: float = 0.0
     tmax: float | None = None
     loc: SourceLocation | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class InitialCondition:
+    """One ``.ic v(node)=value`` entry: a node voltage at t = 0 (V).
+
+    Attributes
+    ----------
+    node : str
+        Canonical node name.
+    value : float
+        Voltage (V).
+    loc : SourceLocation
+        Where it was given.
+    """
+
+    node: str
+    value: float
+    loc: SourceLocation
+
+
+@dataclass(frozen=True, slots=True)
+class StepSpec:
+    """A ``.step param NAME ...`` directive: the values to sweep a parameter over.
+
+    Attributes
+    ----------
+    param : str
+        Lower-case parameter name (defined by ``.param``).
+    values : tuple of float
+        The values, in order.
+    loc : SourceLocation
+        Where it was given.
+    """
+
+    param: str
+    values: tuple[float, ...]
+    loc: SourceLocation
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,6 +203,11 @@ class Netlist:
         The ``.tran`` directive, if any.
     warnings : tuple of Diagnostic
         Things the user should know that did not stop compilation.
+    initial_conditions : tuple of InitialCondition
+        ``.ic v(n)=...`` entries (node voltages at t = 0); element ``IC=``
+        values are on the elements.
+    steps : tuple of StepSpec
+        ``.step param`` sweeps (LTspice), in file order.
     """
 
     title: str
@@ -163,6 +216,8 @@ class Netlist:
     params: dict[str, float] = field(default_factory=dict)
     tran: TranSpec | None = None
     warnings: tuple[Diagnostic, ...] = ()
+    initial_conditions: tuple[InitialCondition, ...] = ()
+    steps: tuple[StepSpec, ...] = ()
 
     def element(self, key: str) -> Element:
         """The element with this (case-insensitive) name."""

@@ -63,12 +63,16 @@ class Pulse:
     per: float | None = None
 
     def resolved(self, tstep: float, tstop: float) -> Pulse:
-        """Fill TR, TF (default TSTEP), PW and PER (default TSTOP) as SPICE does."""
+        """Fill TR, TF (default TSTEP), PW and PER (default TSTOP) as ngspice 39 does.
+
+        A zero TR, TF, PW or PER counts as not given (ngspice 39's ``vsrcload``:
+        ``PULSE(0 1 1u 1u 1u 0 4u)`` has PW = TSTOP; measured).
+        """
         return replace(
             self,
             tr=self.tr if self.tr else tstep,
             tf=self.tf if self.tf else tstep,
-            pw=self.pw if self.pw is not None else tstop,
+            pw=self.pw if self.pw else tstop,
             per=self.per if self.per else tstop,
         )
 
@@ -80,7 +84,9 @@ class Pulse:
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
         tr, tf, pw, per = self._times()
         tt = np.asarray(t, dtype=float) - self.td
-        local = np.where(tt > 0, np.mod(tt, per), tt)
+        # As ngspice 39: wrap only strictly after one period, so t − TD = PER itself is
+        # read in the first period (it matters when TR + PW + TF > PER, e.g. at TSTOP).
+        local = np.where(tt > per, tt - per * np.floor(tt / per), tt)
         out = np.full(local.shape, self.v1)
         rise = (local > 0) & (local < tr)
         out = np.where(rise, self.v1 + (self.v2 - self.v1) * local / tr, out)

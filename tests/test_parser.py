@@ -7,9 +7,10 @@ import pytest
 from netlistdyn.errors import UsageError
 from netlistdyn.expressions import ExpressionError, evaluate
 from netlistdyn.netlist import Kind
-from netlistdyn.parser import parse_text
+from netlistdyn.parser import parse_file, parse_text
 from netlistdyn.values import parse_number
 from netlistdyn.waveforms import Exp, Pulse, Pwl, Sin
+from tests.conftest import NETLISTS
 
 
 @pytest.mark.parametrize(
@@ -49,7 +50,8 @@ def test_not_numbers(token: str) -> None:
 def test_expressions() -> None:
     params = {"r": 2.0, "c": 1e-6}
     assert evaluate("1/(r*c)", params) == pytest.approx(5e5)
-    assert evaluate("2**3**2", {}) == 2.0**9  # right associative
+    # ngspice 39 (measured with ngspice -b): ** is left associative, 2**3**2 = 64
+    assert evaluate("2**3**2", {}) == 64.0
     assert evaluate("-2^2", {}) == -4.0
     assert evaluate("sqrt(16)+max(1,3)", {}) == 7.0
     assert evaluate("2k*r", params) == 4000.0
@@ -122,3 +124,27 @@ def test_waveform_values() -> None:
     pulse = Pulse(0, 1, 1e-6, 1e-6, 1e-6, 2e-6, 10e-6)
     assert list(pulse([0, 1.5e-6, 3e-6, 4.5e-6, 6e-6, 11.5e-6])) == pytest.approx([0, 0.5, 1, 0.5, 0, 0.5])
     assert Pwl((0, 1), (0, 2))([0.25, 5.0]).tolist() == [0.5, 2.0]
+
+
+def test_shipped_netlists_define_each_parameter_once() -> None:
+    for path in sorted(NETLISTS.glob("*.cir")):
+        net = parse_file(path)
+        assert not [w for w in net.warnings if "defined again" in w.message], path.name
+
+
+def test_two_pendula_cart_mass_and_bob_mass_are_separate() -> None:
+    # The notes' linearisation (seed 003): θ'' = K θ with K = g/M [[(M+m)/l1, m/l1], [m/l2, (M+m)/l2]];
+    # the cart adds the zero eigenvalue. With M = 2, m = 1 the two masses must act separately.
+    import numpy as np
+
+    from netlistdyn.formulate import compile_netlist
+
+    big_m, m, l1, l2, g = 2.0, 1.0, 1.0, 2.0, 9.81
+    k = g / big_m * np.array([[(big_m + m) / l1, m / l1], [m / l2, (big_m + m) / l2]])
+    rates = np.sqrt(np.linalg.eigvals(k).astype(complex))
+    expected = [*rates, *(-rates), 0.0]
+    model = compile_netlist(parse_file(NETLISTS / "two_pendula_cart.cir", {"Mc": big_m, "mb": m}))
+    got = np.linalg.eigvals(model.A)
+    # 1e-9 relative to the largest rate: a 5-state eigenproblem of O(1) entries.
+    for value in expected:
+        assert np.min(np.abs(got - value)) <= 1e-9 * float(np.max(np.abs(rates)))
