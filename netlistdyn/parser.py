@@ -723,10 +723,13 @@ _PASSIVE = {
     "c": (Kind.CAPACITOR, ("c", "capacitance", "value"), "capacitance"),
     "l": (Kind.INDUCTOR, ("l", "inductance", "value"), "inductance"),
 }
+# Keywords with no effect on the model: noise parameters, and LTspice's part ratings and
+# catalogue fields (voltage/current/power ratings, tolerance, manufacturer, part number).
+_RATINGS = {"mfg": "", "pn": "", "type": "", "pppkg": ""}
 _PASSIVE_IGNORED = {
-    "r": {"noisy": "noise only", "kf": "noise only", "af": "noise only", "bv_max": "a rating, no effect"},
-    "c": {"bv_max": "a rating, no effect"},
-    "l": {"ipk": "a rating, no effect", "rpeak": "no effect"},
+    "r": {"noisy": "", "kf": "", "af": "", "bv_max": "", "tol": "", "pwr": "", **_RATINGS},
+    "c": {"bv_max": "", "v": "", "irms": "", "rpeak": "", "tol": "", **_RATINGS},
+    "l": {"ipk": "", "rpeak": "", "irms": "", "tol": "", **_RATINGS},
 }
 _LTSPICE_PARASITICS = {"r": (), "c": ("rser", "lser", "rpar", "cpar"), "l": ("rser", "rpar", "cpar")}
 
@@ -787,7 +790,7 @@ def _build_passive(line: Line, fields: list[str], ctx: _Context) -> list[Element
     length = values.number(keywords.pop("l"), loc, f"{name} l") if letter == "r" and "l" in keywords else None
     width = values.number(keywords.pop("w"), loc, f"{name} w") if letter == "r" and "w" in keywords else None
     parasitics = {k: keywords.pop(k) for k in _LTSPICE_PARASITICS[letter] if k in keywords}
-    for key in _PASSIVE_IGNORED[letter]:  # no effect on the model (see the table's reasons)
+    for key in _PASSIVE_IGNORED[letter]:  # no effect on the model
         keywords.pop(key, None)
     temp_keys = {k: keywords.pop(k) for k in ("temp", "dtemp") if k in keywords}
     if keywords:
@@ -1805,8 +1808,6 @@ def parse_text(
         max_elements = _limit_from_environment()
     warnings: list[Diagnostic] = []
     title, lines = read_lines(Path(path), text, warnings)
-    for line in lines:
-        _fields(line)  # unclosed braces and quotes, everywhere
     functions: _Functions = {}
     for line in lines:
         if line.text.split(None, 1)[0].lower() == ".func":
