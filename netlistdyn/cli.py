@@ -828,7 +828,14 @@ def sweep(
         from .report import sweep_record_json, sweep_text, to_json
         from .sweep import expand_cases, iter_sweep
 
-        cases = expand_cases(params)
+        if params:
+            cases = expand_cases(params)
+        else:  # the netlist's own .step param lines (LTspice)
+            from .parser import parse_file
+
+            cases = parse_file(netlist).step_cases()
+            if not cases:
+                raise UsageError("sweep needs --param NAME=VALUES (or .step param lines in the netlist)")
         result = []
         with progress.bar("sweep", len(cases), quiet, unit="case") as bar, _stream(fmt, out) as write:
             for record in iter_sweep(netlist, cases, list(outputs) or None, max(jobs, 1), scheduler, eig):

@@ -498,7 +498,7 @@ class _Evaluator:
 
     def lookup(self, name: str) -> float:
         if name in self.params:
-            return self.params[name]
+            return float(self.params[name])
         if name in CONSTANTS:
             return CONSTANTS[name]
         if name in ("time", "temper", "hertz", "freq"):
@@ -533,7 +533,7 @@ class _Evaluator:
                 a, b = la.const, lb.const
             else:
                 raise NonlinearError(f"operator '{op}' on a node voltage or branch current")
-        assert isinstance(a, float) and isinstance(b, float)
+        a, b = float(a), float(b)  # type: ignore[arg-type]
         try:
             if op == "+":
                 return a + b

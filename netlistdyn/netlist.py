@@ -219,6 +219,23 @@ class Netlist:
     initial_conditions: tuple[InitialCondition, ...] = ()
     steps: tuple[StepSpec, ...] = ()
 
+    def step_cases(self, limit: int = 100_000) -> list[dict[str, float]]:
+        """The parameter cases of the ``.step param`` lines: every combination, in order.
+
+        Raises
+        ------
+        NetlistError
+            When the combinations are more than ``limit``.
+        """
+        from .errors import NetlistError
+
+        cases: list[dict[str, float]] = [{}]
+        for step in self.steps:
+            if len(cases) * len(step.values) > limit:
+                raise NetlistError(f".step: more than {limit} cases", step.loc)
+            cases = [{**case, step.param: value} for case in cases for value in step.values]
+        return cases if self.steps else []
+
     def element(self, key: str) -> Element:
         """The element with this (case-insensitive) name."""
         lowered = key.lower()

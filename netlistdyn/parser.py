@@ -433,7 +433,7 @@ def _short(text: str, limit: int = 40) -> str:
 
 
 def _is_expr(token: str) -> bool:
-    return token[:1] in "{'"
+    return bool(token) and token[0] in "{'"
 
 
 def _unwrap(token: str) -> str:
@@ -1111,8 +1111,10 @@ def _expression_after(line: Line, keys: tuple[str, ...]) -> tuple[str, str] | No
     if match is None:
         return None
     rest = line.text[match.end() :].strip()
+    if not rest:
+        raise NetlistError(f"{line.text.split()[0]}: {match.group(1)}= has no expression", line.loc)
     expr = rest
-    if rest[:1] in "{'":
+    if rest[0] in "{'":
         try:
             first = split_fields(rest)[0]
         except ValueError as exc:
@@ -1289,16 +1291,21 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
         fields = _fields(line)
         if len(fields) < 4:
             raise NetlistError(f"{name}: expected K name L1 L2 k", loc)
-        if len(fields) > 4:
-            raise NetlistError(f"{name}: unexpected field {fields[4]!r}", loc)
-        k = values.number(fields[3], loc, name)
+        k = values.number(fields[-1], loc, name)
         if not 0 < abs(k) < 1:
             raise NetlistError(
                 f"{name}: coupling coefficient must satisfy 0 < |k| < 1, got {k:g}"
                 + (" (perfect coupling is an ideal transformer; use k < 1)" if abs(k) == 1 else ""),
                 loc,
             )
-        return [Element(Kind.COUPLING, name, (), k, loc, coupled=(fields[1].lower(), fields[2].lower()))]
+        inductors = [f.lower() for f in fields[1:-1]]
+        # LTspice: "K1 L1 L2 L3 k" couples every pair with k (ngspice 39 takes two inductors).
+        pairs = list(itertools.combinations(inductors, 2))
+        labels = [name] + [f"{name}.{a}.{b}" for a, b in pairs[1:]]
+        return [
+            Element(Kind.COUPLING, label, (), k, loc, coupled=pair)
+            for label, pair in zip(labels, pairs, strict=True)
+        ]
     what = NONLINEAR_DEVICES.get(letter)
     if what:
         raise NetlistError(
@@ -1508,15 +1515,9 @@ def _subckt_header(line: Line) -> tuple[str, tuple[str, ...], tuple[_Definition,
         i += 1
     defaults: tuple[_Definition, ...] = ()
     if i < len(fields):
-        text = line.text
-        match = re.search(r"(?i)\bparams:", text)
-        if match is not None:
-            tail = text[match.end() :]
-        else:
-            # HSPICE form: the first "name=" after the ports
-            first = re.search(r"(?i)\b" + re.escape(fields[i]) + r"\s*=", text)
-            assert first is not None
-            tail = text[first.start() :]
+        match = re.search(r"(?i)\bparams:", line.text)
+        # "params:" list, or the HSPICE form: from the first "name=" after the ports
+        tail = line.text[match.end() :] if match is not None else _tail_from(line, fields[i])
         defaults = tuple(
             _Definition(n, e, line.loc) for n, e in param_assignments(tail, line.loc, f".subckt {name}")
         )
@@ -1557,6 +1558,14 @@ def _split_subcircuits(lines: list[Line]) -> tuple[list[Line], dict[str, Subcirc
     return top, definitions
 
 
+def _tail_from(line: Line, name: str) -> str:
+    """The text of ``line`` from the first ``name=`` on (a parameter list)."""
+    found = re.search(r"(?i)(?<![\w.])" + re.escape(name) + r"\s*=", line.text)
+    if found is None:
+        raise NetlistError(f"{line.text.split()[0]}: cannot read the parameter list at {name!r}", line.loc)
+    return line.text[found.start() :]
+
+
 def _instance_target(line: Line, fields: list[str]) -> tuple[list[str], str, str]:
     """Nodes, subcircuit name and the ``p=v`` text of an ``X`` line."""
     positional: list[str] = []
@@ -1573,12 +1582,7 @@ def _instance_target(line: Line, fields: list[str]) -> tuple[list[str], str, str
     tail = ""
     if i < len(fields):
         match = re.search(r"(?i)\bparams:", line.text)
-        if match is not None:
-            tail = line.text[match.end() :]
-        else:
-            first = re.search(r"(?i)(?<![\w.])" + re.escape(fields[i]) + r"\s*=", line.text)
-            assert first is not None
-            tail = line.text[first.start() :]
+        tail = line.text[match.end() :] if match is not None else _tail_from(line, fields[i])
     return positional[:-1], positional[-1], tail
 
 

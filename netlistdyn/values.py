@@ -35,7 +35,8 @@ GREEK_MU = "\u03bc"
 
 _MANTISSA = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _EXPONENT = re.compile(r"[eE]([+-]?)(\d+)")
-_SUFFIX = re.compile("meg|mil|[tgkmun\u00b5pf]", re.IGNORECASE)
+# Explicit cases, not re.IGNORECASE: that would fold the Greek μ (U+03BC) onto µ (U+00B5).
+_SUFFIX = re.compile("[mM][eE][gG]|[mM][iI][lL]|[tTgGkKmMuUnNpPfF\u00b5]")
 _PLAIN = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,4})?")
 _RKM_REST = re.compile(r"[^\W\d_]*\d[\w.]*")
 #: An exponent beyond this many digits overflows (or underflows) any float.

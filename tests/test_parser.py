@@ -148,3 +148,34 @@ def test_two_pendula_cart_mass_and_bob_mass_are_separate() -> None:
     # 1e-9 relative to the largest rate: a 5-state eigenproblem of O(1) entries.
     for value in expected:
         assert np.min(np.abs(got - value)) <= 1e-9 * float(np.max(np.abs(rates)))
+
+
+def test_step_param_runs_as_a_sweep(tmp_path) -> None:
+    # LTspice's .step (ngspice 39 refuses it): each case is an RC low-pass, eigenvalue -1/(RC).
+    from click.testing import CliRunner
+
+    from netlistdyn.cli import main
+
+    path = tmp_path / "step.cir"
+    path.write_text("steps\n.param r=1k\nV1 a 0 1\nR1 a b {r}\nC1 b 0 1u\n.step param r list 1k 4k\n")
+    net = parse_file(path)
+    assert net.step_cases() == [{"r": 1000.0}, {"r": 4000.0}]
+    result = CliRunner().invoke(main, ["sweep", str(path), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    import json
+
+    cases = json.loads(result.stdout)["cases"]
+    assert len(cases) == 2
+    for case, r in zip(cases, (1e3, 4e3), strict=True):
+        assert case["params"]["r"] == r
+        ((real, imag),) = case["eigenvalues"]
+        assert imag == 0.0
+        assert real == pytest.approx(-1 / (r * 1e-6), rel=1e-12)  # closed form of one RC pole
+
+
+def test_pwl_file_equals_inline_points(tmp_path) -> None:
+    # LTspice's PWL file=: two columns, time and value (ngspice 39 has no FILE=).
+    (tmp_path / "wave.txt").write_text("0 0\n1u 1\n2u, 0.5\n3u 0\n")
+    (tmp_path / "top.cir").write_text("pwl\nV1 a 0 PWL file=wave.txt\nR1 a 0 1\n")
+    inline = parse_text("pwl\nV1 a 0 PWL(0 0 1u 1 2u 0.5 3u 0)\nR1 a 0 1\n").element("V1").waveform
+    assert parse_file(tmp_path / "top.cir").element("V1").waveform == inline
