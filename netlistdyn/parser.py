@@ -872,6 +872,27 @@ def _check_value(element: Element, warnings: list[Diagnostic]) -> None:
         warnings.append(Diagnostic(element.loc, f"{element.label} has a negative value ({element.value:g})"))
 
 
+def _waveform_parens_only(fields: list[str]) -> list[str]:
+    """Keep the outer parentheses of ``PULSE(...)`` and the like; others are delimiters (``dc(5)``)."""
+    out: list[str] = []
+    depth = 0  # > 0 inside a waveform's parentheses
+    for k, token in enumerate(fields):
+        if token == "(":
+            if depth:
+                depth += 1
+            elif k > 0 and fields[k - 1].lower() in SOURCE_FUNCTIONS:
+                depth = 1
+                out.append(token)
+            continue
+        if token == ")":
+            if depth == 1:
+                out.append(token)
+            depth = max(depth - 1, 0)
+            continue
+        out.append(token)
+    return out
+
+
 def _parse_source(
     fields: list[str], loc: SourceLocation, ctx: _Context, name: str
 ) -> tuple[float, Waveform | None, float | None]:
@@ -1235,7 +1256,7 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
             raise NetlistError(f"{name}: expected 2 nodes", loc)
         kind = Kind.VSOURCE if letter == "v" else Kind.ISOURCE
         nodes = (_node(fields[1]), _node(fields[2]))
-        dc, waveform, z0 = _parse_source(fields[3:], loc, ctx, name)
+        dc, waveform, z0 = _parse_source(_waveform_parens_only(fields[3:]), loc, ctx, name)
         source = Element(kind, name, nodes, dc, loc, waveform=waveform)
         if z0 is None:
             return [source]
