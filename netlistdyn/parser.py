@@ -80,6 +80,7 @@ IGNORED_DIRECTIVES = frozenset(
         ".csparam",
         ".pz",
         ".sp",
+        ".pss",
         ".title",
     }
 )
@@ -692,6 +693,7 @@ class _Context:
     models: dict[str, tuple[str, dict[str, str], SourceLocation]]
     temp: float | None
     tran: TranSpec | None
+    tnom: float = 27.0
 
 
 def _split_keywords(
@@ -739,8 +741,8 @@ def _temperature_factor(
 ) -> float:
     if not tc1 and not tc2:
         return 1.0
-    nominal = 27.0
-    temp = ctx.temp if ctx.temp is not None else nominal
+    nominal = ctx.tnom
+    temp = ctx.temp if ctx.temp is not None else 27.0
     if "temp" in keywords:
         temp = ctx.values.number(keywords["temp"], loc, f"{name} temp")
     if "dtemp" in keywords:
@@ -1737,27 +1739,44 @@ def _expand_instance(
         raise NetlistError(
             f"{name}: subcircuit {sub.name} has {len(sub.ports)} ports, got {len(nodes)} nodes", line.loc
         )
-    # Instance parameters: evaluated in the caller's scope.
+    # Instance parameters (measured on ngspice 39): a value given on the X line replaces the
+    # subcircuit's default *and* a body .param of that name; its expression may use the other
+    # parameters of the instance (par3='par1+par2'), and otherwise the caller's scope. An
+    # expression naming its own parameter (r={r*2}) means the caller's value.
     overrides: dict[str, float] = {}
+    given: list[_Definition] = []
     if tail:
         known = {d.name.lower() for d in sub.defaults}
         for pname, expr in param_assignments(tail, line.loc, name):
             key = pname.lower()
             if key not in known:
                 raise NetlistError(f"{name}: subcircuit {sub.name} has no parameter {pname}", line.loc)
+            text = _value_expression(expr)
             try:
-                overrides[key] = evaluate(_value_expression(expr), values.params, values.functions)
+                parsed = parse(text)
+                if key in parsed.names:
+                    overrides[key] = evaluate(parsed, values.params, values.functions)
+                else:
+                    given.append(_Definition(pname, expr, line.loc))
             except ExpressionError as exc:
                 raise NetlistError(f"{name} {pname}: {exc}", line.loc) from None
-    local_defs = list(sub.defaults) + [
-        _Definition(n, e, b.loc)
-        for b in sub.body
-        if b.text.split(None, 1)[0].lower() == ".param"
-        for n, e in _param_line(b)
-    ]
+    replaced = set(overrides) | {d.name.lower() for d in given}
+    local_defs = (
+        [d for d in sub.defaults if d.name.lower() not in replaced]
+        + [
+            _Definition(n, e, b.loc)
+            for b in sub.body
+            if b.text.split(None, 1)[0].lower() == ".param"
+            for n, e in _param_line(b)
+            if n.lower() not in replaced
+        ]
+        + given
+    )
     scope: Mapping[str, float] = values.params
-    if local_defs:
-        local = evaluate_definitions(local_defs, values.params, values.functions, None, overrides)
+    if local_defs or overrides:
+        base: Mapping[str, float] = ChainMap(overrides, values.params) if overrides else values.params
+        local = evaluate_definitions(local_defs, base, values.functions, None)
+        local.update(overrides)
         scope = ChainMap(local, values.params)  # type: ignore[arg-type]
     outer = [_map_node(_node(n), prefix, port_map, build.globals_) for n in nodes]
     inner_prefix = f"{prefix}.{name}" if prefix else name
@@ -1866,6 +1885,7 @@ def parse_text(
     globals_: set[str] = set()
     tran: TranSpec | None = None
     temp: float | None = None
+    tnom = 27.0
     steps: list[StepSpec] = []
     ics: list[InitialCondition] = []
     skipping_control = False
@@ -1910,7 +1930,7 @@ def parse_text(
                 warnings.append(
                     Diagnostic(line.loc, f"{word} temp/tnom: used only with temperature coefficients")
                 )
-                temp = _options_temperature(line, values, temp)
+                temp, tnom = _options_temperature(line, values, temp, tnom)
             else:
                 warnings.append(Diagnostic(line.loc, f"{word} ignored (it does not affect the model)"))
         elif word in IGNORED_DIRECTIVES:
@@ -1918,7 +1938,7 @@ def parse_text(
         else:
             raise NetlistError(f"unsupported directive {word}", line.loc)
     _count_elements(body, definitions, max_elements)
-    ctx = _Context(values, warnings, models, temp, tran)
+    ctx = _Context(values, warnings, models, temp, tran, tnom)
     build = _Build(ctx, definitions, frozenset(globals_))
     _expand_body(build, body, values, None, "", {}, 0)
     elements = build.elements
@@ -1935,20 +1955,20 @@ def parse_text(
     return Netlist(title, path, tuple(elements), params, tran, tuple(warnings), tuple(ics), tuple(steps))
 
 
-def _options_temperature(line: Line, values: _Values, temp: float | None) -> float | None:
+def _options_temperature(
+    line: Line, values: _Values, temp: float | None, tnom: float
+) -> tuple[float | None, float]:
+    """``temp=`` and ``tnom=`` of an ``.options`` line (°C)."""
     fields = _fields(line)[1:]
     for i, f in enumerate(fields):
         low = f.lower()
-        if (
-            low == "tnom"
-            and i + 2 < len(fields)
-            and fields[i + 1] == "="
-            and values.number(fields[i + 2], line.loc, "tnom") != 27
-        ):
-            raise NetlistError(".options tnom other than 27 is not supported", line.loc)
-        if low == "temp" and i + 2 < len(fields) and fields[i + 1] == "=":
-            temp = values.number(fields[i + 2], line.loc, "temp")
-    return temp
+        if low in ("temp", "tnom") and i + 2 < len(fields) and fields[i + 1] == "=":
+            value = values.number(fields[i + 2], line.loc, low)
+            if low == "temp":
+                temp = value
+            else:
+                tnom = value
+    return temp, tnom
 
 
 def _outside_conditionals(lines: list[Line]) -> list[Line]:

@@ -12,6 +12,9 @@ it. The expected outcome is today's, recorded so that every change shows:
   moved to ``agree``);
 * ``ngspice-refuses`` — ngspice 39 itself refuses the file, so netlistdyn must
   refuse it too; ``accepts-invalid`` marks one it still accepts (strict xfail);
+* ``behavioural`` — a linear B source or E/G ``value=``: ngspice reads it, and the
+  model must agree with ngspice's reading of ``EQUIVALENT`` (the same circuit in
+  controlled sources), or be refused in one line;
 * ``other-simulator`` — ngspice 39 refuses a construct of LTspice, HSPICE or
   Xyce that issue #10 asks netlistdyn to read: refused with one line, or, once
   accepted, the model must agree with ngspice's reading of ``EQUIVALENT``.
@@ -46,61 +49,65 @@ EQUIVALENT: dict[str, bytes] = {
     "tran_one_argument": b"t\n" + RC.encode(),
     "step_param": b"s\n.param rr=1k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n",
     "backanno": b"b\n" + RC.encode(),
+    # Linear behavioural sources: ngspice reads them, but the reference builder stamps only
+    # linear element kinds, so they are compared with the same circuit in controlled sources.
+    "b_source_linear": b"b\n" + RC.encode() + b"E1 b b1.n1 a 0 2\nE2 b1.n1 0 in 0 -0.5\nR2 b 0 1k\n",
+    "e_value_linear": b"e\n" + RC.encode() + b"E1 b 0 a 0 2\nR2 b 0 1k\n",
 }
 ONE_LINE = re.compile(r"^\S.*:\d+: \S.*$")
 
 # name: (netlist bytes, expected outcome today)
 PROBES: dict[str, tuple[bytes, str]] = {
-    "mu_utf8_b5": ("mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\u00b5\n".encode(), "wrong"),
+    "mu_utf8_b5": ("mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\u00b5\n".encode(), "agree"),
     "mu_utf8_3bc": ("mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\u03bc\n".encode(), "agree"),
-    "mu_latin1": (b"mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\xb5\n", "refused"),
+    "mu_latin1": (b"mu\nV1 in 0 dc 1\nR1 in out 1k\nC1 out 0 10\xb5\n", "agree"),
     "global": (
         b"g\n.global vcc\nVs vcc 0 2\n.subckt st in out\nR1 vcc out 1k\nC1 out 0 1u\nR2 in out 2k\n.ends\n"
         b"V1 a 0 1\nX1 a b st\nR3 b 0 4.7k\n",
-        "wrong",
+        "agree",
     ),
-    "unclosed_brace": (b"u\nV1 in 0 1\nR1 in a {1000\nC1 a 0 1u\n", "accepts-invalid"),
-    "extra_value": (b"x\nV1 in 0 1 2\nR1 in a 1k\nC1 a 0 1u\n", "accepts-invalid"),
-    "extra_dc_value": (b"x\nV1 in 0 DC 1 5\nR1 in a 1k\nC1 a 0 1u\n", "accepts-invalid"),
+    "unclosed_brace": (b"u\nV1 in 0 1\nR1 in a {1000\nC1 a 0 1u\n", "ngspice-refuses"),
+    "extra_value": (b"x\nV1 in 0 1 2\nR1 in a 1k\nC1 a 0 1u\n", "ngspice-refuses"),
+    "extra_dc_value": (b"x\nV1 in 0 DC 1 5\nR1 in a 1k\nC1 a 0 1u\n", "ngspice-refuses"),
     "formfeed_in_comment": (b"f\n* note \x0c R9 in 0 1\n" + RC.encode(), "agree"),
     "u2028_in_comment": ("f\n* note \u2028R9 in 0 1\n".encode() + RC.encode(), "agree"),
     "ltspice_rser": (b"r\nV1 in 0 1\nR1 in a 10\nL1 a b 1m Rser=0.5\nC1 b 0 1u\n", "other-simulator"),
     "subckt_params": (
         b"p\n.subckt rc a b params: r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
         b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc c={2n}\n",
-        "refused",
+        "agree",
     ),
     "subckt_hspice_params": (
         b"p\n.subckt rc a b r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
         b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc\n",
-        "refused",
+        "agree",
     ),
     "subckt_nested_params": (
         b"p\n.subckt inner a b params: r=1k\nR1 a b {r}\n.ends\n.subckt outer a b params: k=2\n"
         b"X1 a m inner r={k*1k}\nC1 m b 1u\n.ends\nV1 in 0 1\nX1 in 0 outer k=3\n",
-        "refused",
+        "agree",
     ),
-    "source_keywords": (b"k\nV1 in 0 dc=0 ac=1\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
-    "passive_keywords": (b"k\nV1 in 0 1\nR1 in a R=1k\nC1 a 0 C=1u\nL1 a 0 L=1m\n", "refused"),
+    "source_keywords": (b"k\nV1 in 0 dc=0 ac=1\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "passive_keywords": (b"k\nV1 in 0 1\nR1 in a R=1k\nC1 a 0 C=1u\nL1 a 0 L=1m\n", "agree"),
     "value_keyword": (b"k\nV1 in 0 1\nR1 in a value={2*500}\nC1 a 0 1u\n", "other-simulator"),
-    "multiplier": (b"m\nV1 in 0 1\nR1 in a 1k m=2\nC1 a 0 1u m=3\nL1 a 0 1m m=2\n", "refused"),
-    "r_noisy": (b"n\nV1 in 0 1\nR1 in a 1k noisy=0\nC1 a 0 1u\n", "refused"),
-    "element_ic": (b"i\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u IC=1\nL1 a 0 1m IC=1m\n", "refused"),
+    "multiplier": (b"m\nV1 in 0 1\nR1 in a 1k m=2\nC1 a 0 1u m=3\nL1 a 0 1m m=2\n", "agree"),
+    "r_noisy": (b"n\nV1 in 0 1\nR1 in a 1k noisy=0\nC1 a 0 1u\n", "agree"),
+    "element_ic": (b"i\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u IC=1\nL1 a 0 1m IC=1m\n", "agree"),
     "dot_ic": (b"i\n" + RC.encode() + b".ic v(a)=1\n", "agree"),
-    "dot_func": (b"f\n.func half(x) {x/2}\nV1 in 0 1\nR1 in a {half(2k)}\nC1 a 0 1u\n", "refused"),
+    "dot_func": (b"f\n.func half(x) {x/2}\nV1 in 0 1\nR1 in a {half(2k)}\nC1 a 0 1u\n", "agree"),
     "dot_if": (
         b"i\n.param sel=1\n.if (sel == 1)\nR1 in a 1k\n.else\nR1 in a 2k\n.endif\nV1 in 0 1\nC1 a 0 1u\n",
-        "refused",
+        "agree",
     ),
-    "rkm_4k7": (b"r\nV1 in 0 1\nR1 in a 4k7\nC1 a 0 1u\n", "refused"),
-    "bare_parameter": (b"b\n.param rr=2k\nV1 in 0 1\nR1 in a rr\nC1 a 0 1u\n", "refused"),
+    "rkm_4k7": (b"r\nV1 in 0 1\nR1 in a 4k7\nC1 a 0 1u\n", "agree"),
+    "bare_parameter": (b"b\n.param rr=2k\nV1 in 0 1\nR1 in a rr\nC1 a 0 1u\n", "agree"),
     "atto_is_not_a_suffix": (b"a\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1a\nR2 a 0 1a\n", "agree"),
     "case_insensitive_param": (b"c\n.param M=2 m=3\nV1 in 0 1\nR1 in a {M*1k}\nC1 a 0 1u\n", "agree"),
-    "port_source": (b"p\nV1 in 0 dc 0 ac 1 portnum 1 z0 50\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
-    "distof": (b"d\nV1 in 0 dc 0 ac 1 distof1 0.1\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
-    "r_model_card": (b"m\n.model rmod r\nV1 in 0 1\nR1 in a rmod 1k\nC1 a 0 1u\n", "refused"),
-    "c_model_card": (b"m\n.model cmod c\nV1 in 0 1\nR1 in a 1k\nC1 a 0 cmod 1u\n", "refused"),
-    "title_directive": (b"t\n.title my circuit\n" + RC.encode(), "refused"),
+    "port_source": (b"p\nV1 in 0 dc 0 ac 1 portnum 1 z0 50\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "distof": (b"d\nV1 in 0 dc 0 ac 1 distof1 0.1\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "r_model_card": (b"m\n.model rmod r\nV1 in 0 1\nR1 in a rmod 1k\nC1 a 0 1u\n", "agree"),
+    "c_model_card": (b"m\n.model cmod c\nV1 in 0 1\nR1 in a 1k\nC1 a 0 cmod 1u\n", "agree"),
+    "title_directive": (b"t\n.title my circuit\n" + RC.encode(), "agree"),
     "gnd_alias": (b"g\nV1 in GND 1\nR1 in a 1k\nC1 a gnd 1u\n", "agree"),
     "tran_one_argument": (b"t\n" + RC.encode() + b".tran 2u\n", "other-simulator"),
     "step_param": (
@@ -109,9 +116,15 @@ PROBES: dict[str, tuple[bytes, str]] = {
     ),
     "backanno": (b"b\n" + RC.encode() + b".backanno\n", "other-simulator"),
     "pwl_td": (b"p\nV1 in 0 pwl(0 0 1m 1) td=1m r=0\nR1 in a 1k\nC1 a 0 1u\n", "refused"),
-    "ternary": (b"t\n.param a=1\nV1 in 0 1\nR1 in a {a>0 ? 1k : 2k}\nC1 a 0 1u\n", "refused"),
-    "b_source_linear": (b"b\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nB1 b 0 V=2*V(a)+1\nR2 b 0 1k\n", "refused"),
-    "e_value_linear": (b"e\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nE1 b 0 value={2*V(a)}\nR2 b 0 1k\n", "refused"),
+    "ternary": (b"t\n.param a=1\nV1 in 0 1\nR1 in a {a>0 ? 1k : 2k}\nC1 a 0 1u\n", "agree"),
+    "b_source_linear": (
+        b"b\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nB1 b 0 V=2*V(a)-V(in)/2\nR2 b 0 1k\n",
+        "behavioural",
+    ),
+    "e_value_linear": (
+        b"e\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nE1 b 0 value={2*V(a)}\nR2 b 0 1k\n",
+        "behavioural",
+    ),
     "kicad_export_names": (
         b".title KiCad schematic\nR1 Net-_C1-Pad2_ Net-_R1-Pad2_ 1k\nV1 Net-_R1-Pad2_ GND DC 0 AC 1\n"
         b"C1 /lowpass Net-_C1-Pad2_ 100n\nR2 /lowpass GND 10k\nC2 Net-_C1-Pad2_ GND 47n\n.ac dec 10 1 1Meg\n",
@@ -145,11 +158,12 @@ def test_construct_probe(name: str, tmp_path: Path) -> None:
         if expect == "accepts-invalid":
             pytest.xfail("netlistdyn accepts a file ngspice 39 refuses")
         pytest.fail("netlistdyn accepts a file ngspice 39 refuses")
-    if expect == "other-simulator":
+    if expect in ("other-simulator", "behavioural"):
         path = tmp_path / "probe.cir"
         path.write_bytes(text)
-        with pytest.raises(ReferenceUnavailable):
-            build_reference(path)
+        if expect == "other-simulator":
+            with pytest.raises(ReferenceUnavailable):
+                build_reference(path)
         try:
             netlistdyn.compile(path)
         except NetlistError as exc:

@@ -430,3 +430,28 @@ def test_linear_behavioural_sources_compile() -> None:
     expected = np.sort_complex(build_mna(net).finite_eigenvalues())
     # 1e-9 relative: eigenvalues of a 3-state model with kΩ·µF time constants.
     assert np.allclose(got, expected, rtol=1e-9, atol=0)
+
+
+def test_instance_parameters_replace_body_params_and_see_each_other() -> None:
+    # Measured on ngspice 39 (Xyce's ISSUE_405 test): par3='par1+par2' uses the instance's own
+    # par1, par2 and overrides the body's ".param par3=..." at every level.
+    text = (
+        "instance params\n.subckt simple in out params: par1=2 par2=2 par3='par1*par2*2'\n.param par3=3000\n"
+        "Xtest2 in out simple2 par3='par3'\n.ends\n"
+        ".subckt simple2 in out params: par1=2 par2=80 par3='par1*par2/4'\n.param par3=500\n"
+        "Rinside in out 'par3'\n.ends\n"
+        ".param r=7\n.subckt one a b r=1\nR1 a b {r}\n.ends\n"
+        "V1 1 0 1\nR1 1 2 1\nXtest 2 0 simple par1=2 par2=3 par3='par1+par2'\n"
+        "I1 0 3 1\nX3 3 0 one r={r*2}\n"
+    )
+    net = same(text)
+    assert net.element("Xtest.Xtest2.Rinside").value == 5.0
+    assert net.element("X3.R1").value == 14.0
+
+
+def test_temperature_coefficients_with_options_tnom_and_temp() -> None:
+    net = same(
+        ".options\nI1 0 a 1\nR1 a 0 10 tc1=0.1\nI2 0 b 1\nR2 b 0 10 tc1=0.01 tc2=0.001\n"
+        ".options tnom=20 temp=40\n"
+    )
+    assert net.element("R1").value == pytest.approx(10 * (1 + 0.1 * 20), rel=1e-12)
