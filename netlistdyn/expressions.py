@@ -629,7 +629,10 @@ def evaluate(
     expr = text if isinstance(text, Expression) else parse(text)
     result = _Evaluator(params, functions or {}).run(expr.tree)
     if isinstance(result, Linear):
-        raise ExpressionError("v() and i() are only allowed in behavioural sources")
+        raise ExpressionError(
+            "v() and i() make a value depend on the circuit's solution (a nonlinear element); "
+            "they are read only in B sources and E/G value=, vol=, cur="
+        )
     return result
 
 
