@@ -208,16 +208,15 @@ def _clusters(A: np.ndarray) -> list[_Mode]:
     return sorted(out, key=lambda m: (-m.value.real, -m.value.imag))
 
 
-def _cleaned(M: np.ndarray, n: int, axis: int | None = None) -> np.ndarray:
+def _cleaned(M: np.ndarray, n: int, scale: np.ndarray | None = None) -> np.ndarray:
     """Entries at the rounding level of an orthogonal transformation set to 0.
 
-    The level is 10·n·eps times the larger norm of the entry's row and column
-    (``axis=None``, for A), of its column (``axis=0``, for B: one input's
-    column is mixed) or of its row (``axis=1``, for C).
+    The level is 10·n·eps times ``scale`` (broadcast against M: the norms of
+    B's columns or C's rows before the transformation mixed them), or for A
+    the larger norm of the entry's row and column.
     """
-    rows = np.linalg.norm(M, axis=1)[:, None]
-    cols = np.linalg.norm(M, axis=0)[None, :]
-    scale = np.maximum(rows, cols) if axis is None else (cols if axis == 0 else rows)
+    if scale is None:
+        scale = np.maximum(np.linalg.norm(M, axis=1)[:, None], np.linalg.norm(M, axis=0)[None, :])
     return np.where(np.abs(M) <= 10 * max(n, 1) * EPS * scale, 0.0, M)
 
 
@@ -409,7 +408,9 @@ def deflate(
             norm_a = max(np.linalg.norm(A, 2), 1e-300)
             coupling = W.T @ A @ Q if kind == "c" else Q.T @ A @ W
             error += (np.linalg.norm(coupling, 2) if coupling.size else 0.0) / norm_a + 10 * n * EPS
-            A, B, C = _cleaned(Q.T @ A @ Q, n), _cleaned(Q.T @ B, n, 0), _cleaned(C @ Q, n, 1)
+            b_norms = np.linalg.norm(B, axis=0)[None, :]
+            c_norms = np.linalg.norm(C, axis=1)[:, None]
+            A, B, C = _cleaned(Q.T @ A @ Q, n), _cleaned(Q.T @ B, n, b_norms), _cleaned(C @ Q, n, c_norms)
             (unc if kind == "c" else uno).extend(removed[: W.shape[1]])
             found = True
             break
