@@ -1,8 +1,9 @@
 """Command line: thin wrappers over the pipeline stages.
 
 Exit codes: 0 success, 1 bad netlist, 2 bad command line, 3 validation
-mismatch, 70 internal error. Errors are one line on stderr, never a
-traceback (set ``NETLISTDYN_DEBUG=1`` to see one).
+mismatch (or a simulation that failed), 4 ngspice missing or unusable,
+5 ngspice ran out of time, 70 internal error. Errors are one line on stderr,
+never a traceback (set ``NETLISTDYN_DEBUG=1`` to see one).
 """
 
 from __future__ import annotations
@@ -10,13 +11,14 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import click
 
-from .atomic import write_text
+from .atomic import STDOUT, check_writable, install_signal_cleanup, write_text
 from .errors import ControlDimension, NetlistError, UsageError
 from .values import parse_number
 
@@ -25,7 +27,33 @@ EXIT_NETLIST = 1
 EXIT_USAGE = 2
 EXIT_MISMATCH = 3
 EXIT_NO_NGSPICE = 4
+EXIT_TIMEOUT = 5
 EXIT_INTERNAL = 70
+#: The netlist argument that means standard input, and its name in messages.
+STDIN_NAME = "<stdin>"
+DASH = "-"
+#: Longest text accepted as a number on the command line (a double needs < 30 characters).
+MAX_NUMBER_TEXT = 64
+#: Words longer than this are shortened in error messages (a value of thousands of digits).
+_LONG_WORD = re.compile(r"\S{121,}")
+
+
+def shorten(message: str) -> str:
+    """One line, with any absurdly long word cut (it would flood the terminal)."""
+    one = " ".join(message.split())
+    return _LONG_WORD.sub(lambda m: f"{m[0][:40]}…({len(m[0])} characters)", one)
+
+
+def option_number(text: str, what: str, *, positive: bool = False) -> float:
+    """A finite SPICE number from a command-line value, or a :class:`UsageError` naming ``what``."""
+    value = parse_number(text.strip()) if len(text) <= MAX_NUMBER_TEXT else None
+    if value is None:
+        raise UsageError(f"{what}: {text!r} is not a number")
+    if not math.isfinite(value):
+        raise UsageError(f"{what}: {text!r} is not a finite number")
+    if positive and not value > 0:
+        raise UsageError(f"{what}: {text!r} must be positive")
+    return value
 
 
 class SpiceNumber(click.ParamType):
@@ -49,12 +77,15 @@ class SpiceNumber(click.ParamType):
         if isinstance(value, int | float) and not isinstance(value, bool):
             number = float(value)
         else:
-            parsed = parse_number(str(value).strip())
+            text = str(value).strip()
+            parsed = parse_number(text) if len(text) <= MAX_NUMBER_TEXT else None
             if parsed is None:
-                self.fail(f"{value!r} is not a number (SPICE numbers such as 20m, 1u, 1e-3 are accepted)")
+                self.fail(
+                    f"{shorten(text)!r} is not a number (SPICE numbers such as 20m, 1u, 1e-3 are accepted)"
+                )
             number = parsed
         if not math.isfinite(number):
-            self.fail(f"{value!r} is not a finite number")
+            self.fail(f"{shorten(str(value))!r} is not a finite number")
         if self.positive and number <= 0:
             self.fail(f"{value!r}: must be positive")
         if self.integer:
@@ -70,29 +101,92 @@ POSITIVE = SpiceNumber(positive=True)
 COUNT = SpiceNumber(positive=True, integer=True)
 
 
-def parse_param_overrides(items: tuple[str, ...]) -> dict[str, float]:
-    """``("R1=1k", ...)`` → ``{"R1": 1000.0}``; SPICE numbers accepted, names as the user wrote them."""
+def parse_param_overrides(items: tuple[str, ...], option: str = "--param") -> dict[str, float]:
+    """``("R1=1k", ...)`` → ``{"R1": 1000.0}``; SPICE numbers, finite only, names as the user wrote them."""
     out: dict[str, float] = {}
     for item in items:
         name, sep, text = item.partition("=")
-        value = parse_number(text.strip()) if sep else None
-        if not name.strip() or value is None:
-            raise UsageError(f"--param {item!r}: expected NAME=VALUE with a number (e.g. R1=1k)")
-        out[name.strip()] = value
+        if not name.strip() or not sep:
+            raise UsageError(f"{option} {shorten(item)!r}: expected NAME=VALUE with a number (e.g. R1=1k)")
+        out[name.strip()] = option_number(text, f"{option} {name.strip()}")
     return out
 
 
+def check_outputs(**paths: str | None) -> None:
+    """Refuse, before any work, output paths that cannot be written or that repeat.
+
+    Keyword names are the options (``out`` for ``-o``, underscores for dashes).
+    """
+    seen: dict[str, str] = {}
+    for key, path in paths.items():
+        if not path:
+            continue
+        option = "-o" if key == "out" else "--" + key.replace("_", "-")
+        problem = check_writable(path, option)
+        if problem:
+            raise UsageError(problem)
+        if key == "save":
+            from .exports import FORMATS
+
+            suffix = os.path.splitext(path)[1].lower()
+            if suffix not in FORMATS:
+                raise UsageError(f"--save {path}: unknown format {suffix!r}; use one of {', '.join(FORMATS)}")
+        real = STDOUT if path == STDOUT else os.path.realpath(path)
+        if real in seen:
+            raise UsageError(f"{seen[real]} and {option} both write {path}")
+        seen[real] = option
+
+
+def parse_netlist(netlist: str, overrides: dict[str, float] | None = None, text: str | None = None) -> Any:
+    """Parse a netlist file, or standard input for ``-`` (``text``: stdin already read)."""
+    from .parser import parse_file, parse_text
+
+    if netlist != DASH:  # "-": standard input
+        return parse_file(netlist, overrides)
+    return parse_text(stdin_text() if text is None else text, STDIN_NAME, overrides)
+
+
+def stdin_text() -> str:
+    """Standard input as a netlist's text (UTF-8, no NUL bytes).
+
+    Read once per command: the text is kept in the click context, so a
+    command may parse the netlist ``-`` more than once.
+    """
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None and "netlistdyn.stdin" in ctx.meta:
+        return str(ctx.meta["netlistdyn.stdin"])
+    try:
+        data = click.get_binary_stream("stdin").read()
+        text = data.decode()
+    except UnicodeDecodeError:
+        raise NetlistError("cannot read netlist: not a text file", _stdin_loc()) from None
+    except OSError as exc:
+        raise NetlistError(f"cannot read netlist: {exc.strerror or exc}", _stdin_loc()) from None
+    if "\0" in text:
+        raise NetlistError("cannot read netlist: not a text file", _stdin_loc())
+    if ctx is not None:
+        ctx.meta["netlistdyn.stdin"] = text
+    return text
+
+
+def _stdin_loc() -> Any:
+    from .errors import SourceLocation
+
+    return SourceLocation(STDIN_NAME, 0)
+
+
 def write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    """Write ``text`` to ``path`` through a temporary file and a rename (``-``: stdout)."""
     write_text(path, text)
 
 
 def emit(text: str, out: str | None) -> None:
     """Send a finished document to ``out`` (atomically) or stdout."""
-    if out:
+    if out and out != STDOUT:
         write_atomic(out, text)
     else:
         sys.stdout.write(text)
+        sys.stdout.flush()
 
 
 def run_guarded(action: Callable[[], int | None]) -> None:
@@ -100,18 +194,27 @@ def run_guarded(action: Callable[[], int | None]) -> None:
     try:
         code = action() or 0
     except NetlistError as exc:
-        click.echo(str(exc), err=True)
+        click.echo(shorten(str(exc)), err=True)
         sys.exit(EXIT_NETLIST)
     except (UsageError, ControlDimension) as exc:
-        click.echo(f"netlistdyn: error: {exc}", err=True)
+        click.echo(f"netlistdyn: error: {shorten(str(exc))}", err=True)
         sys.exit(EXIT_USAGE)
     except OSError as exc:
         click.echo(f"netlistdyn: error: {exc.filename or ''}: {exc.strerror or exc}", err=True)
         sys.exit(EXIT_USAGE)
+    except MemoryError:
+        click.echo("netlistdyn: error: out of memory (the model or the request is too large)", err=True)
+        sys.exit(EXIT_USAGE)
+    except RecursionError:
+        if os.environ.get("NETLISTDYN_DEBUG"):
+            raise
+        click.echo("netlistdyn: internal error: RecursionError: nesting too deep (please report)", err=True)
+        sys.exit(EXIT_INTERNAL)
     except Exception as exc:
         if os.environ.get("NETLISTDYN_DEBUG"):
             raise
-        click.echo(f"netlistdyn: internal error: {type(exc).__name__}: {exc} (please report)", err=True)
+        message = shorten(f"{type(exc).__name__}: {exc}")
+        click.echo(f"netlistdyn: internal error: {message} (please report)", err=True)
         sys.exit(EXIT_INTERNAL)
     sys.exit(code)
 
@@ -121,10 +224,32 @@ def _print_warnings(warnings: Any) -> None:
         click.echo(str(warning), err=True)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class OneLineGroup(click.Group):
+    """Click's group, but command-line errors are one line on stderr (exit 2), like ours."""
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+        if kwargs.get("standalone_mode", True) is False:
+            return super().main(*args, **kwargs)
+        kwargs["standalone_mode"] = False
+        try:
+            code = super().main(*args, **kwargs)
+        except click.exceptions.NoArgsIsHelpError as exc:
+            click.echo(exc.ctx.get_help() if exc.ctx else str(exc), err=True)
+            sys.exit(EXIT_USAGE)
+        except click.ClickException as exc:
+            click.echo(f"netlistdyn: error: {shorten(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except click.exceptions.Abort:
+            click.echo("netlistdyn: interrupted", err=True)
+            sys.exit(130)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+@click.group(cls=OneLineGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="netlistdyn")
 def main() -> None:
     """Compile SPICE-like netlists to state-space models, analyse and validate them."""
+    install_signal_cleanup()
 
 
 output_option = click.option(
@@ -153,7 +278,9 @@ format_option = click.option(
 def path_option(flag: str, help_text: str, dest: str | None = None) -> Callable[[Any], Any]:
     """An optional output-file option."""
     names = (flag, dest) if dest else (flag,)
-    return click.option(*names, type=click.Path(dir_okay=False), default=None, help=help_text)
+    return click.option(
+        *names, type=click.Path(dir_okay=False, allow_dash=True), default=None, help=help_text
+    )
 
 
 tstop_option = click.option(
@@ -165,9 +292,8 @@ quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar
 def load_and_compile(netlist: str, params: tuple[str, ...], outputs: list[str] | None) -> tuple[Any, Any]:
     """Parse with ``--param`` overrides, compile, print the warnings; (netlist, model)."""
     from .formulate import compile_netlist
-    from .parser import parse_file
 
-    parsed = parse_file(netlist, parse_param_overrides(params))
+    parsed = parse_netlist(netlist, parse_param_overrides(params))
     model = compile_netlist(parsed, outputs)
     _print_warnings(model.info.warnings)
     return parsed, model
@@ -187,10 +313,9 @@ def load_prepared(
     See :mod:`netlistdyn.coordinates`; ``extra`` are hidden outputs a view needs.
     """
     from .coordinates import prepare
-    from .parser import parse_file
 
     if parsed is None:
-        parsed = parse_file(netlist, parse_param_overrides(params))
+        parsed = parse_netlist(netlist, parse_param_overrides(params))
     prepared = prepare(parsed, list(outputs) or None, coordinates, ics, extra)
     _print_warnings(prepared.full.info.warnings)
     return parsed, prepared
@@ -208,14 +333,14 @@ coordinates_option = click.option(
 out_option = click.option(
     "-o",
     "--out",
-    type=click.Path(dir_okay=False, writable=True),
+    type=click.Path(dir_okay=False, allow_dash=True),
     default=None,
-    help="Write the report to this file (atomically) instead of stdout.",
+    help="Write the report to this file (atomically) instead of stdout ('-': stdout).",
 )
 
 
 @main.command()
-@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
 @output_option
 @param_option
 @format_option
@@ -293,10 +418,10 @@ def analyze(
     )
 
     def body() -> int:
+        check_outputs(bode=bode, save=save, out=out)
         from .large import descriptor_wanted
-        from .parser import parse_file
 
-        early = parse_file(netlist, parse_param_overrides(params))
+        early = parse_netlist(netlist, parse_param_overrides(params))
         if descriptor_wanted(early, "auto"):  # large circuit: sparse descriptor form
             explicit_only = (
                 ("--control", control_report),
@@ -403,7 +528,7 @@ def analyze(
 
 
 @main.command()
-@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
 @output_option
 @param_option
 @click.option(
@@ -424,7 +549,11 @@ def analyze(
     help="Pass threshold: max error relative to each waveform's peak.",
 )
 @click.option(
-    "--timeout", type=POSITIVE, default=600.0, show_default=True, help="Seconds allowed to ngspice."
+    "--timeout",
+    type=POSITIVE,
+    default=600.0,
+    show_default=True,
+    help="Seconds allowed to ngspice (exit 5 when exceeded).",
 )
 @click.option(
     "--ngspice-reltol",
@@ -468,11 +597,13 @@ def validate(
 ) -> None:
     """Run NETLIST through ngspice and the compiled model and compare the responses.
 
-    Exit status 0 when every output agrees within --rtol of its peak, 3 when not.
+    Exit status 0 when every output agrees within --rtol of its peak, 3 when not,
+    4 when ngspice is missing or unusable, 5 when it ran out of --timeout.
     """
     from .spice import ngspice_missing
 
     def body() -> int:
+        check_outputs(plot=plot, out=out)
         missing = ngspice_missing()
         if missing:
             click.echo(f"netlistdyn: {missing}", err=True)
@@ -482,6 +613,8 @@ def validate(
         from .display import signal_units
         from .report import to_json, validation_dict, validation_text
 
+        if netlist == DASH:
+            raise UsageError("validate runs ngspice on the netlist file: give a file, not '-'")
         with progress.bar("validate (ngspice and model)", None, quiet, unit="run"):
             result = validation_pipeline(
                 netlist,
@@ -497,6 +630,12 @@ def validate(
                 warn=lambda w: click.echo(str(w), err=True),
             )
         report = result.report
+        if report.spice.status == "unusable":
+            click.echo(f"netlistdyn: {report.spice.message}", err=True)
+            return EXIT_NO_NGSPICE
+        if report.spice.status == "timeout":
+            click.echo(f"netlistdyn: {report.spice.message} (raise it with --timeout)", err=True)
+            return EXIT_TIMEOUT
         if plot and report.spice.ok:
             from .parser import parse_file
             from .plots import validation_plot
@@ -512,7 +651,7 @@ def validate(
 
 
 @main.command()
-@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
 @output_option
 @param_option
 @tstop_option
@@ -594,12 +733,12 @@ def simulate(
         from .coordinates import select_outputs
         from .display import eng, signal_units
         from .large import descriptor_wanted
-        from .parser import parse_file
         from .report import simulation_csv, simulation_dict, simulation_summary, to_json
         from .simulate import input_signals
         from .validity import rod_angles, validity_warnings
 
-        parsed = parse_file(netlist, parse_param_overrides(params))
+        check_outputs(csv=csv_path, plot=plot, animate=animate, out=out)
+        parsed = parse_netlist(netlist, parse_param_overrides(params))
         if descriptor_wanted(parsed, method):  # large circuit: sparse descriptor form
             refused = [f for f, on in (("--coordinates", coordinates), ("--animate", animate)) if on]
             if refused:
@@ -682,7 +821,7 @@ def simulate(
 
 
 @main.command()
-@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
 @output_option
 @param_option
 @tstop_option
@@ -737,9 +876,13 @@ def bench(
         from .simulate import choose_horizon
         from .validate import spice_settings_for
 
-        if points < 10 or repeats < 1:
-            raise UsageError("--points must be at least 10 and --repeats at least 1")
+        check_outputs(plot=plot, out=out)
         parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+        if not parsed.sources:
+            raise NetlistError(
+                "bench needs an independent source: without one the response from rest is zero",
+                _whole_file(parsed),
+            )
         probes = [parse_probe(name, parsed) for name in model.outputs]
         eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
         horizon = choose_horizon(parsed, eig, tstop, None)
@@ -769,7 +912,7 @@ def bench(
 
 
 @main.command()
-@click.argument("netlist", type=click.Path(exists=True, dir_okay=False))
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
 @click.option(
     "--param",
     "params",
@@ -778,7 +921,21 @@ def bench(
     help="Values of a .param to sweep (repeatable; equal-length lists go together).",
 )
 @output_option
-@click.option("--jobs", type=COUNT, default=1, show_default=True, help="Parallel processes (workers).")
+@click.option(
+    "--jobs",
+    type=COUNT,
+    default=1,
+    show_default=True,
+    help="Parallel processes (workers); capped at this machine's CPUs unless --oversubscribe.",
+)
+@click.option("--oversubscribe", is_flag=True, help="Allow --jobs above the number of CPUs.")
+@click.option(
+    "--max-cases",
+    type=click.IntRange(min=1),
+    default=100_000,
+    show_default=True,
+    help="Refuse sweeps with more cases than this (counted before any runs).",
+)
 @click.option(
     "--scheduler",
     default="processes",
@@ -811,6 +968,8 @@ def sweep(
     params: tuple[str, ...],
     outputs: tuple[str, ...],
     jobs: int,
+    oversubscribe: bool,
+    max_cases: int,
     scheduler: str,
     eig: str,
     plot: str | None,
@@ -821,6 +980,7 @@ def sweep(
     """Eigenvalues and stability for each case of a parameter sweep (compiled once).
 
     Eigenvalues are sorted in the first case and then follow each mode from case to case.
+    Exit status 1 when every case fails (the first failure is printed).
     """
 
     def body() -> int:
@@ -828,17 +988,27 @@ def sweep(
         from .report import sweep_record_json, sweep_text, to_json
         from .sweep import expand_cases, iter_sweep
 
+        check_outputs(plot=plot, out=out)
+        if netlist == DASH:
+            raise UsageError("sweep re-reads the netlist for every case: give a file, not '-'")
+        check_scheduler(scheduler)
         if params:
-            cases = expand_cases(params)
+            cases = expand_cases(params, max_cases)
         else:  # the netlist's own .step param lines (LTspice)
             from .parser import parse_file
 
             cases = parse_file(netlist).step_cases()
             if not cases:
                 raise UsageError("sweep needs --param NAME=VALUES (or .step param lines in the netlist)")
+            if len(cases) > max_cases:
+                raise UsageError(
+                    f"the .step lines make {len(cases):,} cases, more than the limit of {max_cases:,} "
+                    "(raise it with --max-cases)"
+                )
+        workers = worker_count(jobs, len(cases), oversubscribe, scheduler)
         result = []
         with progress.bar("sweep", len(cases), quiet, unit="case") as bar, _stream(fmt, out) as write:
-            for record in iter_sweep(netlist, cases, list(outputs) or None, max(jobs, 1), scheduler, eig):
+            for record in iter_sweep(netlist, cases, list(outputs) or None, workers, scheduler, eig):
                 result.append(record)
                 if write is not None:
                     write(sweep_record_json(record))
@@ -854,6 +1024,48 @@ def sweep(
         return 0
 
     run_guarded(body)
+
+
+SCHEDULER_PATTERN = re.compile(r"(processes|local|dask|(tcp|tls)://[\w.\-\[\]:]+:[0-9]{1,5})")
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Refuse a ``--scheduler`` that is none of the known forms."""
+    if not SCHEDULER_PATTERN.fullmatch(scheduler):
+        raise UsageError(
+            f"--scheduler {shorten(scheduler)!r}: expected processes, dask or a Dask scheduler "
+            "address tcp://HOST:PORT"
+        )
+
+
+def available_cpus() -> int:
+    """CPUs this process may run on."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):
+        return max(os.cpu_count() or 1, 1)
+
+
+def worker_count(jobs: int, cases: int, oversubscribe: bool, scheduler: str) -> int:
+    """Workers for a sweep: no more than the cases, nor (unless told) the CPUs; says when capped."""
+    if scheduler.startswith(("tcp://", "tls://")):
+        return jobs
+    cpus = available_cpus()
+    if jobs > cpus and not oversubscribe:
+        click.echo(
+            f"netlistdyn: note: --jobs {jobs} capped at {cpus}, the CPUs available "
+            "(--oversubscribe to run more)",
+            err=True,
+        )
+        jobs = cpus
+    return max(1, min(jobs, cases))
+
+
+def _whole_file(parsed: Any) -> Any:
+    """The location of a netlist as a whole (its title line)."""
+    from .errors import SourceLocation
+
+    return SourceLocation(getattr(parsed, "path", None) or "<netlist>", 1)
 
 
 @contextlib.contextmanager
@@ -941,6 +1153,7 @@ def connect(
         from .interconnect import connection_names, feedback, series
         from .report import model_dict, text_report, to_json
 
+        check_outputs(save=save, out=out)
         m1 = load_block(first, param1, output1)
         m2 = load_block(second, param2, output2)
         names = (Path(first).stem, Path(second).stem)

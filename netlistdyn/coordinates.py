@@ -25,6 +25,7 @@ free momentum nothing acts on, is left free).
 from __future__ import annotations
 
 import contextlib
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -586,10 +587,11 @@ def parse_conditions(items: Sequence[str], netlist: Netlist, states: Sequence[st
     out = []
     for item in items:
         name, sep, text = item.partition("=")
-        value = parse_number(text.strip()) if sep else None
-        if value is None or not name.strip():
+        value = parse_number(text.strip()) if sep and len(text) <= 64 else None
+        if value is None or not name.strip() or not math.isfinite(value):
             raise UsageError(
-                f"--ic {item!r}: expected NAME=VALUE, NAME a state or a variable such as angle(r1)"
+                f"--ic {item!r}: expected NAME=VALUE with a finite number, NAME a state or a variable "
+                "such as angle(r1)"
             )
         key = name.strip()
         try:

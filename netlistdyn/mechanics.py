@@ -167,19 +167,27 @@ def carried_masses(elements: Sequence[Element]) -> dict[str, tuple[Element, ...]
     for rod in rods:
         children.setdefault(rod.nodes[0], []).append(rod)
     carried: dict[str, tuple[Element, ...]] = {}
-
-    def hanging(rod: Element, trail: tuple[str, ...]) -> tuple[Element, ...]:
-        if rod.key in trail:
-            cycle = " -> ".join((*trail[trail.index(rod.key) :], rod.key))
-            raise NetlistError(f"ROD {rod.name}: rods form a cycle ({cycle})", rod.loc)
-        if rod.key not in carried:
-            bob = rod.nodes[1]
-            below = tuple(m for c in children.get(bob, []) for m in hanging(c, (*trail, rod.key)))
-            carried[rod.key] = (*masses_at.get(bob, []), *below)
-        return carried[rod.key]
-
-    for rod in rods:
-        hanging(rod, ())
+    # Depth-first, with an explicit stack: a hanging chain of thousands of rods is valid input.
+    for root in rods:
+        if root.key in carried:
+            continue
+        stack = [(root, iter(children.get(root.nodes[1], [])))]
+        trail = [root.key]
+        while stack:
+            rod, below = stack[-1]
+            child = next(below, None)
+            if child is None:
+                stack.pop()
+                trail.pop()
+                bob = rod.nodes[1]
+                hanging = (m for c in children.get(bob, []) for m in carried[c.key])
+                carried[rod.key] = (*masses_at.get(bob, []), *hanging)
+            elif child.key in trail:
+                cycle = " -> ".join((*trail[trail.index(child.key) :], child.key))
+                raise NetlistError(f"ROD {child.name}: rods form a cycle ({cycle})", child.loc)
+            elif child.key not in carried:
+                stack.append((child, iter(children.get(child.nodes[1], []))))
+                trail.append(child.key)
     return carried
 
 

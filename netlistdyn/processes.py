@@ -29,6 +29,13 @@ def run_in_child(target: Callable[..., None], args: tuple[Any, ...], timeout: fl
     object or None
         What the child sent; None when it crashed or ran out of time.
     """
+    return run_in_child_status(target, args, timeout)[0]
+
+
+def run_in_child_status(
+    target: Callable[..., None], args: tuple[Any, ...], timeout: float | None
+) -> tuple[Any | None, str]:
+    """:func:`run_in_child`, also saying how the child ended: "ok", "timeout" or "crashed"."""
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
     parent, child = ctx.Pipe(duplex=False)
@@ -36,11 +43,15 @@ def run_in_child(target: Callable[..., None], args: tuple[Any, ...], timeout: fl
     proc.start()
     child.close()
     result: Any | None = None
+    how = "timeout"
     if parent.poll(timeout):
+        how = "crashed"
         with contextlib.suppress(EOFError):
             result = parent.recv()
+            how = "ok"
     proc.join(timeout=5)
     if proc.is_alive():
         proc.kill()
         proc.join()
-    return result
+    parent.close()
+    return result, how

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from .netlist import GROUND, Element, Kind, Netlist
 from .probes import Probe
-from .processes import run_in_child
+from .processes import run_in_child, run_in_child_status
 
 INSTALL_HINT = (
     "ngspice is not available: install it with "
@@ -118,6 +118,7 @@ class SpiceRun:
     ok: bool = True
     message: str = ""
     netlist_text: str = field(default="", repr=False)
+    status: str = "ok"  # "ok", "failed" (ngspice ran and refused), "timeout" or "unusable"
 
 
 def ngspice_missing() -> str | None:
@@ -324,6 +325,7 @@ def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: Spice
             circuit.V("netlistdyn_grid", "netlistdyn_grid", 0, f"PWL({corners})")
             circuit.R("netlistdyn_grid", "netlistdyn_grid", 0, 1)
         simulator = circuit.simulator(simulator="ngspice-shared")
+        tolerate_notes(simulator)
         simulator.options(**settings.options())
         result["netlist_text"] = str(simulator)
         start = time.perf_counter()
@@ -348,9 +350,60 @@ def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: Spice
     except Exception as exc:
         stderr = " ".join(str(x) for x in _collect_stderr(locals().get("simulator")))
         result["message"] = _failure_message(stderr) or f"{type(exc).__name__}: {exc}"
+        if "simulator" not in locals() and unusable_reason(exc):
+            result["status"] = "unusable"
+            result["message"] = unusable_reason(exc)
     with contextlib.suppress(Exception):
         conn.send(result)
     conn.close()
+
+
+#: ngspice's stderr lines that inform rather than fail ("Note: v1: has no value, DC 0 assumed").
+INFORMATIONAL_PREFIXES = ("note:", "warning:")
+
+
+def only_informational(lines: Sequence[str]) -> bool:
+    """True when every non-blank stderr line of ngspice is a note or a warning."""
+    return all(not line.strip() or line.strip().lower().startswith(INFORMATIONAL_PREFIXES) for line in lines)
+
+
+def tolerate_notes(simulator: Any) -> None:
+    """Make PySpice treat ngspice's informational stderr lines as what they are.
+
+    PySpice's shared-library wrapper marks every stderr line that is not a
+    "Warning:" as an error and fails the command (``Note: ...`` lines, printed
+    for instance for a source with both a DC value and a PULSE, never give a
+    result). A command that failed only with such lines is taken as
+    successful; real errors (on stdout, or any other stderr line) still fail.
+    """
+    ngspice = getattr(simulator, "ngspice", None)
+    original = getattr(ngspice, "exec_command", None)
+    if original is None:
+        return
+    from PySpice.Spice.NgSpice.Shared import NgSpiceCommandError
+
+    def exec_command(command: str, join_lines: bool = True) -> Any:
+        try:
+            return original(command, join_lines)
+        except NgSpiceCommandError:
+            if getattr(ngspice, "_error_in_stdout", True) or not only_informational(ngspice._stderr):
+                raise
+            return ngspice.stdout if join_lines else list(ngspice._stdout)
+
+    ngspice.exec_command = exec_command
+
+
+def unusable_reason(exc: BaseException) -> str:
+    """Why ngspice cannot be used at all ("" when ``exc`` is about this netlist).
+
+    An import error (PySpice or its dependencies) or an :class:`OSError` while
+    the shared library is loaded means no netlist can be validated.
+    """
+    if isinstance(exc, ImportError):
+        return f"ngspice unusable: PySpice cannot be imported ({' '.join(str(exc).split())[:160]})"
+    if isinstance(exc, OSError):
+        return f"ngspice unusable: libngspice cannot be loaded ({' '.join(str(exc).split())[:160]})"
+    return ""
 
 
 def _collect_stderr(simulator: Any) -> list[str]:
@@ -392,10 +445,16 @@ def run_transient(
     SpiceRun
         ``ok`` is False (with a message) when ngspice failed or timed out.
     """
-    result = run_in_child(_child, (netlist, list(probes), settings), timeout)
+    result, how = run_in_child_status(_child, (netlist, list(probes), settings), timeout)
     if result is None:
-        message = f"ngspice did not finish within {timeout:g} s" if timeout else "ngspice crashed"
-        return SpiceRun(np.zeros(0), {}, float(timeout or 0.0), settings, False, message)
+        if how == "timeout":
+            message = f"ngspice did not finish within {timeout:g} s"
+            return SpiceRun(
+                np.zeros(0), {}, float(timeout or 0.0), settings, False, message, status="timeout"
+            )
+        message = "ngspice unusable: its process died before answering (a crash of libngspice)"
+        return SpiceRun(np.zeros(0), {}, 0.0, settings, False, message, status="unusable")
+    status = result.get("status", "ok" if result["ok"] else "failed")
     return SpiceRun(
         result["time"],
         result["outputs"],
@@ -404,6 +463,7 @@ def run_transient(
         result["ok"],
         result["message"],
         result.get("netlist_text", ""),
+        status,
     )
 
 
@@ -425,6 +485,7 @@ def _pz_child(conn: Any, netlist: Netlist, ports: tuple[str, str, str, str], kin
     try:
         circuit = build_circuit(netlist, (), 1.0, 1.0, ac_source=source)
         simulator = circuit.simulator(simulator="ngspice-shared")
+        tolerate_notes(simulator)
         analysis = simulator.polezero(*(_node(n) for n in ports), kind, "pol")
         poles = [complex(np.asarray(v).ravel()[0]) for k, v in analysis.nodes.items() if k.startswith("pole")]
         result.update(ok=True, poles=np.asarray(poles, dtype=complex))
