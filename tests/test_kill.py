@@ -4,7 +4,8 @@
 child process and sent SIGTERM or SIGKILL at random moments spread over the run (start-up,
 compilation, each write). Afterwards each target is either absent or complete: byte-identical
 to the output of an uninterrupted run. After SIGTERM no ``.netlistdyn-*.tmp`` file may remain;
-after SIGKILL one may (nothing can run), but never a partial target.
+after SIGKILL one may (nothing can run), but never a partial target. (A SIGTERM that lands
+during a write is tested deterministically in test_robust.py.)
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTIONS = 1500
-RUNS_PER_SIGNAL = 5
+SECTIONS = 1000
+RUNS_PER_SIGNAL = 4
 
 
 def ladder(path: Path) -> None:
@@ -73,6 +74,7 @@ def test_killed_run_leaves_no_partial_file(
 ) -> None:
     expected, seconds = reference
     rng = random.Random(20261122 + signum)
+    killed = 0
     for run in range(RUNS_PER_SIGNAL):
         folder = tmp_path / f"run{run}"
         folder.mkdir()
@@ -81,6 +83,7 @@ def test_killed_run_leaves_no_partial_file(
         time.sleep(rng.uniform(0.2, 1.1) * seconds)
         proc.send_signal(signum)
         code = proc.wait(timeout=300)
+        killed += code == -signum
         names = {p.name for p in folder.iterdir()} - {"ladder.cir"}
         for name, content in expected.items():
             if name in names:
@@ -91,3 +94,4 @@ def test_killed_run_leaves_no_partial_file(
             assert code in (0, -signal.SIGTERM)
         else:
             assert all(".netlistdyn-" in n and n.endswith(".tmp") for n in leftovers), leftovers
+    assert killed >= 1  # the signal landed before the end at least once (the times are spread)
