@@ -262,10 +262,10 @@ option("param_inf", ["analyze", F, "--param", "R1=inf"], "not a", "--param")
 option("param_nan", ["analyze", F, "--param", "R1=nan"], "not", "--param")
 option("param_5000_digits", ["analyze", F, "--param", "R1=" + BIG], "not a number", "--param")
 option("param_empty_name", ["analyze", F, "--param", "=1"], "expected NAME=VALUE", "--param")
-option("ic_unknown_state", ["simulate", F, "--ic", "q(C9)=1"], "expected STATE=VALUE", "--ic")
-option("ic_nan", ["simulate", F, "--ic", "q(C1)=nan"], "not", "--ic")
-option("ic_5000_digits", ["simulate", F, "--ic", "q(C1)=" + BIG], "not a number", "--ic")
-option("ic_no_equals", ["simulate", F, "--ic", "q(C1)"], "expected STATE=VALUE", "--ic")
+option("ic_unknown_state", ["simulate", F, "--ic", "q(C9)=1"], "states: q(C1)", "--ic")
+option("ic_nan", ["simulate", F, "--ic", "q(C1)=nan"], "finite number", "--ic")
+option("ic_5000_digits", ["simulate", F, "--ic", "q(C1)=" + BIG], "finite number", "--ic")
+option("ic_no_equals", ["simulate", F, "--ic", "q(C1)"], "expected NAME=VALUE", "--ic")
 option("tstop_inf", ["simulate", F, "--tstop", "inf"], "not a", "--tstop")
 option("tstop_nan", ["simulate", F, "--tstop", "nan"], "not", "--tstop")
 option("tstop_zero", ["simulate", F, "--tstop", "0"], "positive", "--tstop")
@@ -465,8 +465,8 @@ def zip_with_member() -> bytes:
 
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w") as archive:
-        archive.writestr("A.npy", b"not an npy file")
-        archive.writestr("states.npy", b"also not")
+        for member, content in (("A.npy", b"not an npy file"), ("states.npy", b"also not")):
+            archive.writestr(zipfile.ZipInfo(member, date_time=(2026, 1, 1, 0, 0, 0)), content)
     return buffer.getvalue()
 
 
