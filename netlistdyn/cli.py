@@ -1013,6 +1013,11 @@ def sweep(
                 if write is not None:
                     write(sweep_record_json(record))
                 bar.update()
+        failed = [case for case in result if "error" in case]
+        if failed and len(failed) == len(result):
+            first = shorten(str(failed[0]["error"]))
+            click.echo(f"{first} (every one of the {len(result)} cases failed)", err=True)
+            return EXIT_NETLIST
         if plot:
             from .plots import sweep_plot
 
