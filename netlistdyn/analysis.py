@@ -19,6 +19,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .model import Pencil
+from .pencil import check_spectrum
+
 EPS = float(np.finfo(float).eps)
 #: Above this estimated relative error an eigenvalue is flagged as untrustworthy.
 TRUST_RTOL = 1e-6
@@ -46,12 +49,30 @@ class Mode:
         ``abs_error`` is reported as exactly zero.
     abs_error : float
         Estimated absolute error of λ (1/s): componentwise backward error of
-        its residual × componentwise condition number (``_error_estimates``);
-        NaN when not estimated (sparse eigensolver).
+        its residual × componentwise condition number, against the circuit
+        equations when the model carries them (:mod:`netlistdyn.pencil`),
+        else against A (``_error_estimates``); NaN when not estimated
+        (sparse eigensolver).
+    re_error, im_error : float
+        Bounds on the errors of the real and imaginary parts (1/s), NaN
+        when only ``abs_error`` is known. The stability verdict uses the
+        real part's.
     """
 
     value: complex
     abs_error: float
+    re_error: float = math.nan
+    im_error: float = math.nan
+
+    @property
+    def real_error(self) -> float:
+        """Bound on the error of Re λ (1/s): ``re_error`` when known, else ``abs_error``."""
+        return self.re_error if math.isfinite(self.re_error) else self.abs_error
+
+    @property
+    def imag_error(self) -> float:
+        """Bound on the error of Im λ (1/s): ``im_error`` when known, else ``abs_error``."""
+        return self.im_error if math.isfinite(self.im_error) else self.abs_error
 
     @property
     def rel_error(self) -> float:
@@ -174,6 +195,9 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     import mpmath as mp
 
     n = a.shape[0]
+    # Balancing (a diagonal similarity by powers of 2: exact) shrinks ‖A‖, the computation's own
+    # rounding level, without changing eigenvalues or componentwise condition numbers.
+    a, _ = sla.matrix_balance(a, permute=False)
     with mp.workdps(REFINE_DIGITS):
         values, left, right = mp.eig(mp.matrix(a.tolist()), left=True, right=True)
         abs_a = mp.matrix([[abs(mp.mpf(v)) for v in row] for row in a.tolist()])
@@ -232,11 +256,22 @@ def _accurate_inverse(a: np.ndarray) -> np.ndarray | None:
     return inv if residual <= 1e-10 * scale else None
 
 
-def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
-    if a.shape[0] > ESTIMATE_LIMIT:
+#: Up to this many states each eigenvalue is checked against the circuit equations (the pencil).
+PENCIL_LIMIT = 600
+
+
+def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode], str, tuple[str, ...]]:
+    n = a.shape[0]
+    if pencil is not None and pencil.nstates < n:
+        # Displacement integrators: A = [[A0, 0], [Cv, 0]], eigenvalues those of A0 and exact zeros.
+        k, n0 = n - pencil.nstates, pencil.nstates
+        modes, method, notes = _dense_modes(a[:n0, :n0], pencil) if n0 else ([], "no states", ())
+        modes = modes + [Mode(0j, 0.0, 0.0, 0.0) for _ in range(k)]
+        return modes, f"{method}; {k} displacement integrator(s): eigenvalue 0, exact", notes
+    if n > ESTIMATE_LIMIT:
         values = np.linalg.eigvals(a)
         method = f"LAPACK geev (balanced QR) on A; no error estimates above {ESTIMATE_LIMIT} states"
-        return [Mode(complex(v), math.nan) for v in values], method
+        return [Mode(complex(v), math.nan) for v in values], method, ()
     w, vl, vr = _eig(a)
     method = "LAPACK geev (balanced QR) on A"
     inv = _accurate_inverse(a)
@@ -258,16 +293,48 @@ def _dense_modes(a: np.ndarray) -> tuple[list[Mode], str]:
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"
     abs_err = _error_estimates(a, w, vl, vr)
     abs_err = np.where(np.isfinite(abs_err), abs_err, np.inf)
+    re_err = np.full(n, math.nan)
+    im_err = np.full(n, math.nan)
+    checked = np.zeros(n, dtype=bool)
+    notes: list[str] = []
+    if pencil is not None and n <= PENCIL_LIMIT:
+        for k, result in enumerate(check_spectrum(pencil, w)):
+            if result is not None:
+                w[k], abs_err[k] = result.value, result.abs_error
+                re_err[k], im_err[k] = result.re_error, result.im_error
+                checked[k] = True
+        method += (
+            "; each checked and refined against the circuit equations (error bars in the element values)"
+        )
     with np.errstate(over="ignore"):  # a tiny eigenvalue's relative error may be inf, correctly
         rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
-    if a.shape[0] <= REFINE_LIMIT and np.any(rel > TRUST_RTOL):
-        w, abs_err = _extended_precision(a)
-        method += f"; recomputed in {REFINE_DIGITS}-digit arithmetic (mpmath)"
-    # Parts below their own error estimate are zero as far as the data can tell.
-    re = np.where(np.abs(w.real) <= abs_err, 0.0, w.real)
-    im = np.where(np.abs(w.imag) <= abs_err, 0.0, w.imag)
-    modes = [Mode(complex(r, i), float(e)) for r, i, e in zip(re, im, abs_err, strict=True)]
-    return modes, method
+    untrusted = ~checked & (rel > TRUST_RTOL)
+    if n <= REFINE_LIMIT and np.any(untrusted):
+        mp_w, mp_err = _extended_precision(a)
+        free = list(range(n))
+        for k in np.flatnonzero(untrusted):
+            j = min(free, key=lambda i: abs(mp_w[i] - w[k]))
+            free.remove(j)
+            if mp_err[j] < abs_err[k]:  # never worse than its input
+                w[k], abs_err[k] = mp_w[j], mp_err[j]
+        method += f"; unverified ones recomputed in {REFINE_DIGITS}-digit arithmetic (mpmath)"
+    if pencil is not None and n <= PENCIL_LIMIT:
+        notes.extend(
+            f"eigenvalue {w[k]:.6g} could not be checked against the circuit equations (not simple); "
+            "its error estimate covers the eigensolver, not the reduction to A"
+            for k in range(n)
+            if not checked[k] and w[k] != 0
+        )
+    # Parts below their own error bound are zero as far as the data can tell.
+    re_bar = np.where(np.isfinite(re_err), re_err, abs_err)
+    im_bar = np.where(np.isfinite(im_err), im_err, abs_err)
+    re = np.where(np.abs(w.real) <= re_bar, 0.0, w.real)
+    im = np.where(np.abs(w.imag) <= im_bar, 0.0, w.imag)
+    modes = [
+        Mode(complex(r, i), float(e), float(er), float(ei))
+        for r, i, e, er, ei in zip(re, im, abs_err, re_err, im_err, strict=True)
+    ]
+    return modes, method, tuple(notes)
 
 
 def largest_eigenvalues(a: sp.sparray, k: int, tol: float) -> np.ndarray:
@@ -311,34 +378,74 @@ def _sparse_modes(a: sp.sparray) -> tuple[list[Mode], str]:
     return modes, method
 
 
-def _verdict(modes: list[Mode], a_norm: float, complete: bool, a: np.ndarray | None) -> str:
+def _verdict(modes: list[Mode], complete: bool, a: np.ndarray | None) -> str:
+    """Stability from each eigenvalue's real part against that part's own error bound."""
     if not complete:
         return "undetermined"
     if not modes:
         return "asymptotically stable"
-    tol = [
-        max(abs(m.value) * (m.rel_error if math.isfinite(m.rel_error) else 1.0), 100 * EPS * abs(m.value))
-        for m in modes
-    ]
-    unstable = any(m.value.real > t for m, t in zip(modes, tol, strict=True))
-    if unstable:
+    if any(m.value.real > m.real_error for m in modes):
         return "unstable"
-    axis = [m for m, t in zip(modes, tol, strict=True) if abs(m.value.real) <= t]
+    axis = [m for m in modes if abs(m.value.real) <= m.real_error]
     if not axis:
         return "asymptotically stable"
     if _unresolved_zeros(modes):
         return "undetermined"
-    # Marginal only if every eigenvalue on the imaginary axis is semisimple.
+    # Marginal only if every eigenvalue on the imaginary axis is semisimple. Eigenvalues are
+    # told apart by their own error bars (not by a fraction of ‖A‖, which would merge a 1 rad/s
+    # mode with a 1e10 rad/s one's neighbourhood).
     if a is not None:
-        scale = max(a_norm, 1.0)
-        for mode in axis:
-            lam = complex(0.0, mode.value.imag)
-            alg = sum(1 for m in axis if abs(m.value - mode.value) <= 1e-8 * scale)
-            shifted = a - lam * np.eye(a.shape[0])
-            geo = a.shape[0] - np.linalg.matrix_rank(shifted, tol=1e-9 * scale)
-            if geo < alg:
+        for cluster in _clusters(axis):
+            if len(cluster) < 2:
+                continue
+            if _nullity(a, complex(0.0, float(np.mean([m.value.imag for m in cluster]))), cluster) < len(
+                cluster
+            ):
                 return "unstable"
     return "marginally stable"
+
+
+def _clusters(modes: list[Mode]) -> list[list[Mode]]:
+    """Groups of eigenvalues whose error discs overlap (transitively)."""
+    parent = list(range(len(modes)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, mi in enumerate(modes):
+        for j in range(i + 1, len(modes)):
+            mj = modes[j]
+            bound = _finite_or(mi.abs_error, 0.0) + _finite_or(mj.abs_error, 0.0)
+            if abs(mi.value - mj.value) <= bound:
+                parent[root(i)] = root(j)
+    groups: dict[int, list[Mode]] = {}
+    for i, m in enumerate(modes):
+        groups.setdefault(root(i), []).append(m)
+    return list(groups.values())
+
+
+def _finite_or(value: float, default: float) -> float:
+    return value if math.isfinite(value) else default
+
+
+def _nullity(a: np.ndarray, lam: complex, cluster: list[Mode]) -> int:
+    """Dimension of the null space of A − λI, judged on the balanced matrix.
+
+    A singular value counts as zero below the cluster's own error bound or
+    the rounding level n·eps·‖A_bal‖, whichever is larger.
+    """
+    balanced, _ = sla.matrix_balance(a, permute=False)
+    n = a.shape[0]
+    shifted = balanced - lam * np.eye(n)
+    values = sla.svdvals(shifted)
+    tol = max(
+        max(_finite_or(m.abs_error, 0.0) for m in cluster) * len(cluster),
+        n * EPS * float(np.linalg.norm(balanced, 2)),
+    )
+    return int(np.sum(values <= tol))
 
 
 def _unresolved_zeros(modes: list[Mode]) -> list[Mode]:
@@ -370,14 +477,19 @@ def _cover_data_error(modes: list[Mode], a: np.ndarray, data_error: float) -> li
     for m in modes:
         k = int(np.argmin(np.abs(w - m.value)))
         err = max(m.abs_error, data_error / s[k] if s[k] > 0 else math.inf)
-        re = 0.0 if abs(m.value.real) <= err else m.value.real
-        im = 0.0 if abs(m.value.imag) <= err else m.value.imag
-        out.append(Mode(complex(re, im), err))
+        re_err = max(m.real_error, err)
+        im_err = max(m.imag_error, err)
+        re = 0.0 if abs(m.value.real) <= re_err else m.value.real
+        im = 0.0 if abs(m.value.imag) <= im_err else m.value.imag
+        out.append(Mode(complex(re, im), err, re_err, im_err))
     return out
 
 
 def analyze_eigenvalues(
-    a: sp.sparray | np.ndarray, which: str = "auto", data_error: float = 0.0
+    a: sp.sparray | np.ndarray,
+    which: str = "auto",
+    data_error: float = 0.0,
+    pencil: Pencil | None = None,
 ) -> EigenAnalysis:
     """Eigenvalues of A with stability verdict, stiffness ratio and trust warnings.
 
@@ -392,6 +504,10 @@ def analyze_eigenvalues(
         Normwise error (1/s) that the entries of ``a`` already carry, e.g.
         from a model reduction (:func:`netlistdyn.control.minimal_realisation`);
         every eigenvalue's error estimate is widened to cover it.
+    pencil : Pencil, optional
+        The circuit equations A was reduced from (``model.pencil``). When
+        given, each eigenvalue is checked and refined against them, so its
+        error bar covers the reduction to A as well as the eigensolver.
 
     Returns
     -------
@@ -400,26 +516,30 @@ def analyze_eigenvalues(
     n = a.shape[0]
     complete = which == "all" or (which == "auto" and n <= DENSE_LIMIT) or n <= 2 * EXTREME_COUNT + 2
     dense = None
+    notes: tuple[str, ...] = ()
     if complete:
         dense = a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
-        modes, method = _dense_modes(dense) if n else ([], "no states")
+        modes, method, notes = _dense_modes(dense, pencil) if n else ([], "no states", ())
         if data_error > 0 and n:
             modes = _cover_data_error(modes, dense, data_error)
     else:
         modes, method = _sparse_modes(a)
     modes.sort(key=lambda m: (-m.value.real, -m.value.imag))
-    a_norm = float(np.linalg.norm(dense, 1)) if dense is not None and n else 0.0
-    verdict = _verdict(modes, a_norm, complete, dense)
+    verdict = _verdict(modes, complete, dense)
     decaying = [abs(m.value.real) for m in modes if m.value.real < 0]
     stiffness = max(decaying) / min(decaying) if decaying and complete else None
-    warnings = tuple(
-        f"eigenvalue {m.value:.6g} may be inaccurate: estimated relative error {m.rel_error:.1e} "
-        "(residual backward error × componentwise condition number)"
-        for m in modes
-        if math.isfinite(m.rel_error) and m.rel_error > TRUST_RTOL
-    ) + tuple(
-        f"eigenvalue {m.value:.6g} is defective or ill-conditioned (no error estimate)"
-        for m in modes
-        if complete and not math.isfinite(m.rel_error) and m.value != 0
+    warnings = (
+        tuple(
+            f"eigenvalue {m.value:.6g} may be inaccurate: estimated relative error {m.rel_error:.1e} "
+            "(residual backward error × componentwise condition number)"
+            for m in modes
+            if math.isfinite(m.rel_error) and m.rel_error > TRUST_RTOL
+        )
+        + tuple(
+            f"eigenvalue {m.value:.6g} is defective or ill-conditioned (no error estimate)"
+            for m in modes
+            if complete and not math.isfinite(m.rel_error) and m.value != 0
+        )
+        + notes
     )
     return EigenAnalysis(tuple(modes), verdict, stiffness, method, complete, warnings)

@@ -322,7 +322,9 @@ def simulation_pipeline(
     for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
         if value is not None and not value > 0:
             raise UsageError(f"{name} must be positive")
-    eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+    eig = analyze_eigenvalues(
+        model.A_sparse, "auto" if model.nstates <= 1000 else "extreme", pencil=model.pencil
+    )
     horizon = choose_horizon(netlist, eig, tstop, tstep)
     check_horizon(horizon)
     count = round(horizon.tstop / horizon.tstep)
@@ -487,7 +489,7 @@ def validation_pipeline(
             warn(warning)
     if (tstop is not None and tstop <= 0) or (tstep is not None and tstep <= 0):
         raise UsageError("--tstop and --tstep must be positive")
-    eig = analyze_eigenvalues(model.A_sparse)
+    eig = analyze_eigenvalues(model.A_sparse, pencil=model.pencil)
     horizon = choose_horizon(parsed, eig, tstop, tstep)
     check_horizon(horizon)
     settings = spice_settings_for(horizon, eig, model.nstates)
@@ -755,7 +757,7 @@ def eigenvalues(model: StateSpaceModel, which: str = "auto") -> Any:
 
     if which not in ("auto", "all", "extreme"):
         raise UsageError(f"which: {which!r}; choose auto, all or extreme")
-    return analyze_eigenvalues(model.A_sparse, which)
+    return analyze_eigenvalues(model.A_sparse, which, pencil=model.pencil)
 
 
 __all__ = [

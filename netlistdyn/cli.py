@@ -480,7 +480,11 @@ def analyze(
                     data_error = reduction.data_error
                 structure = control.structure(model) if control_report else None
             tfs = control.transfer_functions(model) if control_report else []
-        analysis = None if eig == "none" else analyze_eigenvalues(model.A_sparse, eig, data_error)
+        analysis = (
+            None
+            if eig == "none"
+            else analyze_eigenvalues(model.A_sparse, eig, data_error, pencil=model.pencil)
+        )
         bar.update()
         stages.close()
         forms = canonical_forms(model) if canonical else None
@@ -884,7 +888,9 @@ def bench(
                 _whole_file(parsed),
             )
         probes = [parse_probe(name, parsed) for name in model.outputs]
-        eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+        eig = analyze_eigenvalues(
+            model.A_sparse, "auto" if model.nstates <= 1000 else "extreme", pencil=model.pencil
+        )
         horizon = choose_horizon(parsed, eig, tstop, None)
         with progress.bar("bench", 100, quiet, unit="%") as bar:
             report = run_bench(
@@ -1166,7 +1172,7 @@ def connect(
             names = (f"{names[0]}1", f"{names[1]}2")
         model = series(m1, m2, names) if how == "series" else feedback(m1, m2, float(sign), names)
         links = connection_names(m1, m2, how, names, float(sign))
-        analysis = analyze_eigenvalues(model.A_sparse)
+        analysis = analyze_eigenvalues(model.A_sparse, pencil=model.pencil)
         if save:
             from .exports import save_model
 

@@ -39,7 +39,7 @@ import scipy.sparse.linalg as spla
 from .errors import NetlistError, SingularCircuitError, SourceLocation, TopologyError, UsageError
 from .graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
 from .mechanics import state_prefix
-from .model import CompileInfo, ExcessElement, StateShift, StateSpaceModel
+from .model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceModel
 from .netlist import GROUND, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
 
@@ -85,6 +85,7 @@ class _Equations:
     F: sp.csr_array
     vmap: sp.csr_array  # branch voltages from primaries
     imap: sp.csr_array  # branch currents from primaries
+    G_data: sp.csr_array  # the element-value part of G (G minus the topology's ±1)
 
 
 @dataclass(frozen=True)
@@ -417,6 +418,20 @@ def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equat
     n = circuit.nbranches
     vmap, imap = primary_maps(tree)
     laws = branch_laws(netlist, circuit, lambda e: e.value, _numeric_mutual)
+    G, E = _law_matrices(laws, tree, vmap, imap)
+    # The same laws with every element value set to 0 leave the topology's ±1: the rest of G
+    # is made of element values (R, gains, turns ratios), the part a value's rounding perturbs.
+    structure = branch_laws(netlist, circuit, lambda e: 0.0, lambda *_: 0.0)
+    G_topology, _ = _law_matrices(structure, tree, vmap, imap)
+    F = _triplets(laws.u, (n, len(netlist.sources)))
+    return _Equations(_clean(G), _clean(E), F, vmap, imap, _clean(G - G_topology))
+
+
+def _law_matrices(
+    laws: BranchLaws, tree: TreeSplit, vmap: sp.csr_array, imap: sp.csr_array
+) -> tuple[sp.csr_array, sp.csr_array]:
+    """G and E of ``G w + E w' + F u = 0`` from the branch laws and the primary maps."""
+    n = vmap.shape[0]
     G = _triplets(laws.v, (n, n)) @ vmap + _triplets(laws.i, (n, n)) @ imap
     if laws.control:
         ctrl = _potential_rows(tree, [pair for _, pair, _ in laws.control], n)
@@ -425,8 +440,7 @@ def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equat
         )
         G = G + place @ ctrl
     E = _triplets(laws.dv, (n, n)) @ vmap + _triplets(laws.di, (n, n)) @ imap
-    F = _triplets(laws.u, (n, len(netlist.sources)))
-    return _Equations(_clean(G), _clean(E), F, vmap, imap)
+    return sp.csr_array(G), sp.csr_array(E)
 
 
 def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classes:
@@ -736,6 +750,7 @@ def reduce_to_state_space(
         tuple(p.name for p in probes),
         netlist.title,
         info,
+        pencil=Pencil(G, E, nx_, equations.G_data),
     )
 
 
@@ -832,6 +847,7 @@ def add_displacements(model: StateSpaceModel, probes: Sequence[Probe]) -> StateS
         model.outputs,
         model.title,
         info,
+        pencil=model.pencil,
     )
 
 

@@ -99,6 +99,36 @@ class CompileInfo:
     passive: bool = False
 
 
+@dataclass(frozen=True)
+class Pencil:
+    """The circuit's own equations, from which A was reduced: G w + E w' = 0 (inputs zero).
+
+    One row per branch law, one column per branch primary (a tree branch's
+    voltage, a link's current); the entries are element values (Ω, F, H,
+    gains) and the ±1 of the topology. The finite eigenvalues of the pencil
+    are the circuit's natural frequencies, so eigenvalues computed from A
+    can be checked (and refined) against the element values themselves,
+    which covers the error of the reduction to A.
+
+    Attributes
+    ----------
+    G, E : scipy.sparse.csr_array
+        Square matrices of the same size.
+    nstates : int
+        The pencil's finite eigenvalues are those of the leading
+        ``nstates × nstates`` block of A (the remaining states are
+        displacement integrators, whose eigenvalues are exactly 0).
+    G_data : scipy.sparse.csr_array or None
+        The entries of G made of element values (G minus the topology's
+        exact ±1); every entry of E is an element value. None: all of G.
+    """
+
+    G: sp.csr_array
+    E: sp.csr_array
+    nstates: int
+    G_data: sp.csr_array | None = None
+
+
 def _readonly(matrix: sp.sparray) -> np.ndarray:
     dense = np.asarray(matrix.toarray(), dtype=float)
     dense.setflags(write=False)
@@ -120,6 +150,9 @@ class StateSpaceModel:
         Netlist title.
     info : CompileInfo
         What the compiler found.
+    pencil : Pencil or None
+        The circuit equations A was reduced from (set by the compiler, None
+        for models built otherwise); eigenvalue analysis checks against it.
     """
 
     A_sparse: sp.csr_array
@@ -132,6 +165,7 @@ class StateSpaceModel:
     outputs: tuple[str, ...]
     title: str = ""
     info: CompileInfo = field(default_factory=lambda: CompileInfo(order=0))
+    pencil: Pencil | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n, m, p = len(self.states), len(self.inputs), len(self.outputs)

@@ -187,7 +187,7 @@ def _one_case(
         model = compile_netlist(netlist, outputs) if formulation is None else recompile(formulation, netlist)
     except NetlistError as exc:
         return {"params": params, "error": str(exc)}
-    analysis = analyze_eigenvalues(model.A_sparse, eig)
+    analysis = analyze_eigenvalues(model.A_sparse, eig, pencil=model.pencil)
     return {
         "params": params,
         "eigenvalues": [[m.value.real, m.value.imag] for m in analysis.modes],
