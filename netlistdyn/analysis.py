@@ -20,7 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .model import Pencil
-from .pencil import check_spectrum
+from .pencil import check_spectrum, structural_zeros
 
 EPS = float(np.finfo(float).eps)
 #: Above this estimated relative error an eigenvalue is flagged as untrustworthy.
@@ -298,14 +298,27 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
     checked = np.zeros(n, dtype=bool)
     notes: list[str] = []
     if pencil is not None and n <= PENCIL_LIMIT:
-        for k, result in enumerate(check_spectrum(pencil, w)):
+        slots = check_spectrum(pencil, w, abs_err)
+        w0, err0 = w.copy(), abs_err.copy()
+        for k, (index, result) in enumerate(slots):
             if result is not None:
                 w[k], abs_err[k] = result.value, result.abs_error
                 re_err[k], im_err[k] = result.re_error, result.im_error
                 checked[k] = True
+            else:
+                w[k], abs_err[k] = w0[index], err0[index]
         method += (
             "; each checked and refined against the circuit equations (error bars in the element values)"
         )
+        # Zeros the topology guarantees (inductor loops, capacitor cutsets) are exact: the
+        # smallest unverified eigenvalues are those.
+        zeros = structural_zeros(pencil)
+        if zeros:
+            candidates = sorted(np.flatnonzero(~checked), key=lambda k: abs(w[k]))[:zeros]
+            for k in candidates:
+                w[k], abs_err[k], re_err[k], im_err[k] = 0.0, 0.0, 0.0, 0.0
+                checked[k] = True
+            method += f"; {len(candidates)} zero(s) exact by topology (conserved fluxes or charges)"
     with np.errstate(over="ignore"):  # a tiny eigenvalue's relative error may be inf, correctly
         rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
     untrusted = ~checked & (rel > TRUST_RTOL)
@@ -319,11 +332,19 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
                 w[k], abs_err[k] = mp_w[j], mp_err[j]
         method += f"; unverified ones recomputed in {REFINE_DIGITS}-digit arithmetic (mpmath)"
     if pencil is not None and n <= PENCIL_LIMIT:
+        unchecked = [k for k in range(n) if not checked[k] and w[k] != 0]
+        if unchecked:
+            method += (
+                f"; {len(unchecked)} not verified on the circuit equations (a multiple root, or Newton's "
+                "method did not settle): bound from A alone"
+            )
+        with np.errstate(over="ignore"):
+            rel = np.where(np.abs(w) > 0, abs_err / np.maximum(np.abs(w), 1e-300), np.inf)
         notes.extend(
-            f"eigenvalue {w[k]:.6g} could not be checked against the circuit equations (not simple); "
-            "its error estimate covers the eigensolver, not the reduction to A"
-            for k in range(n)
-            if not checked[k] and w[k] != 0
+            f"eigenvalue {w[k]:.6g} could not be verified on the circuit equations "
+            "and its estimate from A alone is not small"
+            for k in unchecked
+            if rel[k] > TRUST_RTOL
         )
     # Parts below their own error bound are zero as far as the data can tell.
     re_bar = np.where(np.isfinite(re_err), re_err, abs_err)

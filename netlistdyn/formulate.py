@@ -43,8 +43,6 @@ from .model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceMod
 from .netlist import GROUND, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
 
-#: Entries below this (relative to the largest in their matrix) are rounding noise.
-ZERO_TOL = 1e-13
 #: A factorisation whose pivots span more than this ratio is treated as singular.
 SINGULAR_RCOND = 1e-14
 
@@ -129,20 +127,37 @@ def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> S
 
 
 def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formulation:
-    """Choose the normal tree and compile; see :func:`compile_netlist`."""
+    """Choose the normal tree and compile; see :func:`compile_netlist`.
+
+    Candidate trees are tried in order of decreasing state count: a tree
+    that compiles gives the circuit's true order (the reduction is exact), a
+    tree with too many states meets a singular capacitance/inductance
+    matrix, one with too few meets derivatives it cannot eliminate.
+    """
     probes = (
         tuple(parse_probe(text, netlist) for text in outputs) if outputs else tuple(default_probes(netlist))
     )
+    check_couplings(netlist)
+    check_value_range(netlist)
     failure: NetlistError | None = None
+    topology: TopologyError | None = None
     for circuit, tree in tree_candidates(netlist):
         try:
             model = _compile_on_tree(netlist, circuit, tree, probes)
-        except (SingularCircuitError, NotSupportedError) as exc:
+        except TopologyError as exc:  # a source loop or cutset: the same on every tree
+            topology = topology or exc
+            continue
+        except (SingularCircuitError, NotSupportedError, OutputDerivativeError) as exc:
             failure = failure or exc
             continue
         return Formulation(netlist, circuit, tree, probes, model)
-    assert failure is not None
-    raise failure
+    error = topology or failure
+    assert error is not None
+    raise error
+
+
+class OutputDerivativeError(UsageError):
+    """An output needs second derivatives of the circuit variables on this tree."""
 
 
 def _compile_on_tree(
@@ -151,8 +166,156 @@ def _compile_on_tree(
     check_sources(circuit, tree)
     equations = assemble(netlist, circuit, tree)
     classes = classify(circuit, tree, netlist)
-    model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
-    return add_displacements(model, probes)
+    held = held_displacements(netlist, probes)
+    if not held:
+        model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
+        return add_displacements(model, probes)
+    # Positions that springs hold are sums of spring fluxes (L·i + Σ M·i): computed from the
+    # currents of the inductors on the path, which are appended as hidden outputs.
+    keys = sorted({key for _, path in held.values() for key, _ in path} | _partners(netlist, held))
+    hidden = tuple(Probe("i", f"i({key})", element=key) for key in keys)
+    full = reduce_to_state_space(netlist, circuit, tree, equations, classes, (*probes, *hidden))
+    rows = _flux_rows(netlist, full, len(probes), keys, held)
+    p = len(probes)
+    model = StateSpaceModel(
+        full.A_sparse,
+        full.B_sparse,
+        _replace_rows(full.C_sparse, rows[0], p),
+        _replace_rows(full.D_sparse, rows[1], p),
+        _replace_rows(full.D1_sparse, rows[2], p),
+        full.states,
+        full.inputs,
+        full.outputs[:p],
+        full.title,
+        full.info,
+        pencil=full.pencil,
+    )
+    unheld = [Probe("v", pr.name, pr.nodes) if j in held else pr for j, pr in enumerate(probes)]
+    model = add_displacements(model, unheld)
+    based = {j: base for j, (base, _) in held.items() if base is not None}
+    if not based:
+        return model
+    # x(a) = x(c) + (x(a) − x(c)): a position in a free chain of springs is another's plus fluxes.
+    C, D, D1 = (sp.lil_array(m) for m in (model.C_sparse, model.D_sparse, model.D1_sparse))
+    for j, base in based.items():
+        for matrix in (C, D, D1):
+            matrix[[j], :] = matrix[[j], :].toarray() + matrix[[base], :].toarray()
+    return replace(
+        model, C_sparse=_clean(C.tocsr()), D_sparse=_clean(D.tocsr()), D1_sparse=_clean(D1.tocsr())
+    )
+
+
+def held_displacements(
+    netlist: Netlist, probes: Sequence[Probe]
+) -> dict[int, tuple[int | None, list[tuple[str, int]]]]:
+    """``x(...)`` outputs that chains of springs determine, and the chains.
+
+    x(pos) − x(neg) of a spring (an inductor: L = 1/k) is its flux L·i, so
+    the positions of nodes joined by springs differ by sums of fluxes. A
+    node joined to the frame (node 0) by springs has its position held; in a
+    chain that nothing ties to the frame, one position needs an integrator
+    and the others follow from it.
+
+    Returns
+    -------
+    dict
+        For each probe index that needs no integrator of its own:
+        ``(base, path)`` — the probe's value is the base probe's (None: no
+        base) plus the fluxes of ``path``, a list of ``(inductor key, sign)``.
+    """
+    picks = [j for j, p in enumerate(probes) if p.kind == "x"]
+    if not picks:
+        return {}
+    adjacency: dict[str, list[tuple[str, str, int]]] = {}
+    for e in netlist.elements:
+        if e.kind is Kind.INDUCTOR:
+            pos, neg = e.nodes
+            adjacency.setdefault(neg, []).append((pos, e.key, +1))  # x(pos) = x(neg) + φ
+            adjacency.setdefault(pos, []).append((neg, e.key, -1))
+    root_of: dict[str, str] = {}
+    path_to_root: dict[str, list[tuple[str, int]]] = {}
+    for start in [GROUND, *adjacency]:
+        if start in root_of:
+            continue
+        root_of[start], path_to_root[start] = start, []
+        queue = [start]
+        while queue:
+            node = queue.pop()
+            for other, key, sign in adjacency.get(node, ()):
+                if other not in root_of:
+                    root_of[other] = start
+                    path_to_root[other] = [*path_to_root[node], (key, sign)]
+                    queue.append(other)
+
+    def between(a: str, b: str) -> list[tuple[str, int]]:
+        """Springs from b to a: x(a) − x(b) = (x(a) − x(root)) − (x(b) − x(root))."""
+        return path_to_root.get(a, []) + [(key, -sign) for key, sign in path_to_root.get(b, [])]
+
+    held: dict[int, tuple[int | None, list[tuple[str, int]]]] = {}
+    bases: dict[str, int] = {}  # root of a free chain -> the probe x(c) integrated for it
+    for j in picks:
+        a, b = probes[j].nodes
+        if root_of.get(a, a) == root_of.get(b, b):
+            held[j] = (None, between(a, b))
+        elif b == GROUND:
+            root = root_of.get(a, a)
+            if root in bases:
+                base = bases[root]
+                held[j] = (base, between(a, probes[base].nodes[0]))
+            else:
+                bases[root] = j
+    return held
+
+
+def _partners(netlist: Netlist, held: dict[int, tuple[int | None, list[tuple[str, int]]]]) -> set[str]:
+    """Inductors coupled to those on a held path (their currents enter the flux)."""
+    on_path = {key for _, path in held.values() for key, _ in path}
+    out: set[str] = set()
+    for e in netlist.elements:
+        if e.kind is Kind.COUPLING and e.coupled is not None and set(e.coupled) & on_path:
+            out |= set(e.coupled)
+    return out
+
+
+def _flux_rows(
+    netlist: Netlist,
+    full: StateSpaceModel,
+    p: int,
+    keys: list[str],
+    held: dict[int, tuple[int | None, list[tuple[str, int]]]],
+) -> tuple[dict[int, sp.csr_array], dict[int, sp.csr_array], dict[int, sp.csr_array]]:
+    """Rows of C, D, D1 for each held displacement: Σ sign·(L·i + Σ M·i_other) over its path."""
+    column = {key: p + k for k, key in enumerate(keys)}
+    by_key = {e.key: e for e in netlist.elements}
+    mutual: dict[str, list[tuple[str, float]]] = {}
+    for e in netlist.elements:
+        if e.kind is Kind.COUPLING and e.coupled is not None:
+            a, b = e.coupled
+            m = _numeric_mutual(e, by_key[a], by_key[b])
+            mutual.setdefault(a, []).append((b, m))
+            mutual.setdefault(b, []).append((a, m))
+    out: tuple[dict[int, sp.csr_array], ...] = ({}, {}, {})
+    for j, (_, path) in held.items():
+        weights: dict[str, float] = {}
+        for key, sign in path:
+            weights[key] = weights.get(key, 0.0) + sign * by_key[key].value
+            for other, m in mutual.get(key, ()):
+                weights[other] = weights.get(other, 0.0) + sign * m
+        select = sp.csr_array(
+            (list(weights.values()), ([0] * len(weights), [column[k] for k in weights])),
+            shape=(1, full.noutputs),
+        )
+        for target, matrix in zip(out, (full.C_sparse, full.D_sparse, full.D1_sparse), strict=True):
+            target[j] = sp.csr_array(select @ matrix)
+    return out  # type: ignore[return-value]
+
+
+def _replace_rows(matrix: sp.csr_array, rows: dict[int, sp.csr_array], p: int) -> sp.csr_array:
+    """The first p rows of matrix, with the given rows replaced."""
+    lil = sp.lil_array(matrix[:p, :])
+    for j, row in rows.items():
+        lil[[j], :] = row.toarray()
+    return _clean(lil.tocsr())
 
 
 def recompile(formulation: Formulation, netlist: Netlist) -> StateSpaceModel:
@@ -209,43 +372,26 @@ def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
     orientation (first port in the tree) on ties.
     """
     keys = [e.key for e in netlist.elements if e.kind is Kind.TRANSFORMER]
-    if not keys:
-        circuit = build_graph(netlist)
-        return [(circuit, normal_tree(circuit))]
+    controlled = {e.kind for e in netlist.elements} & {Kind.VCCS, Kind.CCCS, Kind.VCVS, Kind.CCVS}
+    # Controlled sources as sources (the default), then current-type, then all, as resistors.
+    variants: list[frozenset[Kind]] = [frozenset()]
+    if controlled & {Kind.VCCS, Kind.CCCS}:
+        variants.append(frozenset(controlled & {Kind.VCCS, Kind.CCCS}))
+    if controlled & {Kind.VCVS, Kind.CCVS}:
+        variants.append(frozenset(controlled))
 
-    def attempt(swapped: frozenset[str]) -> tuple[int, CircuitGraph, TreeSplit] | None:
-        circuit = build_graph(netlist, swapped)
-        tree = normal_tree(circuit)
-        if _misplaced_transformers(circuit, tree):
-            return None
-        states = sum(
+    def states_of(circuit: CircuitGraph, tree: TreeSplit) -> int:
+        return sum(
             1
             for b in circuit.branches
             if (b.element.kind is Kind.CAPACITOR and tree.in_tree[b.index])
             or (b.element.kind is Kind.INDUCTOR and not tree.in_tree[b.index])
         )
-        return states, circuit, tree
 
-    found: list[tuple[int, int, CircuitGraph, TreeSplit]] = []
-    if len(keys) <= EXHAUSTIVE_TRANSFORMERS:
-        for mask in range(1 << len(keys)):
-            swapped = frozenset(k for i, k in enumerate(keys) if mask >> i & 1)
-            result = attempt(swapped)
-            if result is not None:
-                found.append((result[0], len(swapped), result[1], result[2]))
-    else:
-        swapped = frozenset()
-        best = attempt(swapped)
-        improved = True
-        while improved:
-            improved = False
-            for key in keys:
-                trial = swapped ^ {key}
-                result = attempt(trial)
-                if result is not None and (best is None or result[0] > best[0]):
-                    swapped, best, improved = trial, result, True
-        if best is not None:
-            found.append((best[0], len(swapped), best[1], best[2]))
+    found: list[tuple[int, int, int, CircuitGraph, TreeSplit]] = []
+    for rank, resistive in enumerate(variants):
+        for count, circuit, tree in _transformer_trees(netlist, keys, resistive, states_of):
+            found.append((states_of(circuit, tree), rank, count, circuit, tree))
     if not found:
         element = next(e for e in netlist.elements if e.kind is Kind.TRANSFORMER)
         raise TopologyError(
@@ -253,8 +399,53 @@ def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
             "voltage sources or a cutset of current sources)",
             element.loc,
         )
-    found.sort(key=lambda item: (-item[0], item[1]))
-    return [(circuit, tree) for _, _, circuit, tree in found]
+    found.sort(key=lambda item: (-item[0], item[1], item[2]))
+    unique: list[tuple[CircuitGraph, TreeSplit]] = []
+    seen: set[bytes] = set()
+    for _, _, _, circuit, tree in found:
+        signature = tree.in_tree.tobytes() + bytes(int(b.role) for b in circuit.branches)
+        if signature not in seen:
+            seen.add(signature)
+            unique.append((circuit, tree))
+    return unique
+
+
+def _transformer_trees(
+    netlist: Netlist,
+    keys: list[str],
+    resistive: frozenset[Kind],
+    states_of: Callable[[CircuitGraph, TreeSplit], int],
+) -> list[tuple[int, CircuitGraph, TreeSplit]]:
+    """Normal trees over the transformer orientations (exhaustive, or greedy above the limit)."""
+
+    def attempt(swapped: frozenset[str]) -> tuple[int, CircuitGraph, TreeSplit] | None:
+        circuit = build_graph(netlist, swapped, resistive)
+        tree = normal_tree(circuit)
+        if _misplaced_transformers(circuit, tree):
+            return None
+        return states_of(circuit, tree), circuit, tree
+
+    out: list[tuple[int, CircuitGraph, TreeSplit]] = []
+    if len(keys) <= EXHAUSTIVE_TRANSFORMERS:
+        for mask in range(1 << len(keys)):
+            swapped = frozenset(k for i, k in enumerate(keys) if mask >> i & 1)
+            result = attempt(swapped)
+            if result is not None:
+                out.append((len(swapped), result[1], result[2]))
+        return out
+    swapped = frozenset()
+    best = attempt(swapped)
+    improved = True
+    while improved:
+        improved = False
+        for key in keys:
+            trial = swapped ^ {key}
+            result = attempt(trial)
+            if result is not None and (best is None or result[0] > best[0]):
+                swapped, best, improved = trial, result, True
+    if best is not None:
+        out.append((len(swapped), best[1], best[2]))
+    return out
 
 
 def _misplaced_transformers(circuit: CircuitGraph, tree: TreeSplit) -> list[Element]:
@@ -361,12 +552,89 @@ def branch_laws(
 
 
 def _numeric_mutual(coupling: Element, la: Element, lb: Element) -> float:
-    """M = k·√(L_a L_b) (H), with the sign of the inductances."""
-    if la.value * lb.value <= 0:
-        raise NetlistError(
-            f"{coupling.label}: coupled inductors must have inductances of the same sign", coupling.loc
-        )
-    return coupling.value * float(np.sqrt(la.value * lb.value)) * float(np.sign(la.value))
+    """M = k·sqrt(|L_a L_b|) (H), as ngspice computes it whatever the inductances' signs."""
+    return coupling.value * float(np.sqrt(abs(la.value * lb.value)))
+
+
+#: Element values must lie within this magnitude range (their products and reciprocals stay finite).
+VALUE_RANGE = (1e-150, 1e150)
+
+
+def check_value_range(netlist: Netlist) -> None:
+    """Refuse element values whose products or reciprocals would overflow double precision.
+
+    Raises
+    ------
+    NetlistError
+        Naming the element, e.g. ``R1 in a 1e-308`` (1/(R·C) overflows).
+    """
+    low, high = VALUE_RANGE
+    for element in netlist.elements:
+        magnitude = abs(element.value)
+        if element.value != 0 and not low <= magnitude <= high:
+            raise NetlistError(
+                f"{element.label}: value {element.value:g} is outside the range the model can be computed "
+                f"in ({low:g} to {high:g} in magnitude): its products with other values overflow",
+                element.loc,
+            )
+
+
+def check_couplings(netlist: Netlist) -> None:
+    """Refuse coupled inductors whose inductance matrix is not positive definite.
+
+    Each group of inductors joined by ``K`` elements (couplings on one pair
+    add, as in ngspice) must have a positive definite inductance matrix when
+    its inductances are positive: otherwise the stored energy ½ iᵀ L i can
+    be negative (total coupling of 1 or more), which no magnetic circuit
+    does, and the model would report a spurious instability or none at all.
+
+    Raises
+    ------
+    NetlistError
+        Naming the couplings of the offending group.
+    """
+    couplings = [e for e in netlist.elements if e.kind is Kind.COUPLING]
+    if not couplings:
+        return
+    inductors = {e.key: e for e in netlist.elements if e.kind is Kind.INDUCTOR}
+    parent: dict[str, str] = {}
+
+    def root(key: str) -> str:
+        while parent.get(key, key) != key:
+            key = parent[key]
+        return key
+
+    for k in couplings:
+        assert k.coupled is not None
+        a, b = (root(name) for name in k.coupled)
+        if a != b:
+            parent[a] = b
+    groups: dict[str, list[Element]] = {}
+    for k in couplings:
+        assert k.coupled is not None
+        groups.setdefault(root(k.coupled[0]), []).append(k)
+    for members in groups.values():
+        names = sorted({name for k in members for name in k.coupled or ()})
+        if any(inductors[name].value <= 0 for name in names):
+            continue  # negative inductances: no energy argument; singularity is caught later
+        pos = {name: j for j, name in enumerate(names)}
+        matrix = np.diag([inductors[name].value for name in names])
+        for k in members:
+            assert k.coupled is not None
+            a, b = (pos[name] for name in k.coupled)
+            m = _numeric_mutual(k, inductors[names[a]], inductors[names[b]])
+            matrix[a, b] += m
+            matrix[b, a] += m
+        # Scaled to a unit diagonal (dimensionless coupling matrix), definiteness is scale-free.
+        d = 1.0 / np.sqrt(np.diag(matrix))
+        coupling_matrix = matrix * d[:, None] * d[None, :]
+        if np.linalg.eigvalsh(coupling_matrix).min() <= 4 * len(names) * float(np.finfo(float).eps):
+            labels = ", ".join(k.label for k in members)
+            raise NetlistError(
+                f"{labels}: the inductance matrix of {', '.join(inductors[n].label for n in names)} is not "
+                "positive definite (total coupling of 1 or more): not a physical set of coupled inductors",
+                members[0].loc,
+            )
 
 
 def _triplets(entries: list[tuple[int, int, Any]], shape: tuple[int, int]) -> sp.csr_array:
@@ -477,10 +745,6 @@ def _clean(matrix: sp.sparray) -> sp.csr_array:
     return out
 
 
-def _is_zero(matrix: sp.sparray, scale: float) -> bool:
-    return matrix.nnz == 0 or float(np.abs(matrix.data).max()) <= ZERO_TOL * max(scale, 1e-300)
-
-
 def _cols(matrix: sp.csr_array, index: np.ndarray) -> sp.csr_array:
     return sp.csr_array(matrix[:, index]) if len(index) else sp.csr_array((matrix.shape[0], 0))
 
@@ -513,21 +777,57 @@ def _eliminate_sources_and_excess(
     dx, dy = _cols(E, classes.x), _cols(E, classes.y)
     if len(classes.d):
         # Excess rows read w_d + E_d w' = 0, so w_d = −E_d w' (never another excess primary).
+        # Where a substituted term cancels an existing one, the difference is zero up to rounding:
+        # judged against the magnitudes that were added, never against a unit-dependent level.
         e_d = _rows(full.E, classes.d)
         g_d = _cols(G, classes.d)
-        dx = dx - g_d @ _cols(e_d, classes.x)
-        dy = dy - g_d @ _cols(e_d, classes.y)
-        du = du - g_d @ (_cols(e_d, classes.s) @ unit)
+        e_du = _cols(e_d, classes.s) @ unit
+        dx = _cancelled(dx, g_d, _cols(e_d, classes.x))
+        dy = _cancelled(dy, g_d, _cols(e_d, classes.y))
+        du = _cancelled(du, g_d, e_du)
     return _Block(_cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du))
+
+
+#: A sum is exactly zero when it is below this multiple of eps times the sum of its terms' magnitudes.
+CANCELLATION = 16 * float(np.finfo(float).eps)
+
+
+def _cancelled(base: sp.csr_array, left: sp.csr_array, right: sp.csr_array) -> sp.csr_array:
+    """base − left @ right, with entries that cancel to rounding level set to exactly zero."""
+    value = sp.coo_array(sp.csr_array(base - left @ right))
+    if value.nnz == 0:
+        return sp.csr_array(value.shape)
+    bound = sp.csr_array(abs(sp.csr_array(base)) + abs(sp.csr_array(left)) @ abs(sp.csr_array(right)))
+    magnitude = np.asarray(bound[value.row, value.col]).ravel()
+    keep = np.abs(value.data) > CANCELLATION * magnitude
+    return sp.csr_array((value.data[keep], (value.row[keep], value.col[keep])), shape=value.shape)
+
+
+def _negligible(left: sp.csr_array, right: sp.csr_array) -> bool:
+    """True when every entry of left @ right is rounding noise relative to |left| @ |right|.
+
+    ``right`` comes from a sparse solve, so its entries carry relative errors
+    up to about the condition number times eps; a product that cancels to
+    below :data:`PRODUCT_ZERO` of its terms' magnitudes is zero. The test is
+    relative entry by entry, so it does not depend on units.
+    """
+    product = sp.coo_array(sp.csr_array(left @ right))
+    if product.nnz == 0:
+        return True
+    bound = sp.csr_array(abs(sp.csr_array(left)) @ abs(sp.csr_array(right)))
+    magnitude = np.asarray(bound[product.row, product.col]).ravel()
+    return bool(np.all(np.abs(product.data) <= PRODUCT_ZERO * magnitude))
+
+
+#: Relative level below which a product of solved matrices is taken as zero (see _negligible).
+PRODUCT_ZERO = 1e-8
 
 
 #: Largest resistive system for which derivatives of algebraic unknowns are resolved (dense SVD).
 ALGEBRAIC_DERIVATIVE_LIMIT = 3000
 
 
-def _substitute_algebraic_derivatives(
-    yb: _Block, scale: float, involved: list[str], netlist: Netlist
-) -> _Block:
+def _substitute_algebraic_derivatives(yb: _Block, involved: list[str], netlist: Netlist) -> _Block:
     """Replace derivatives of resistive unknowns that the derivative-free rows fix.
 
     An excess capacitor in a loop with a controlled voltage-type branch (a
@@ -549,14 +849,18 @@ def _substitute_algebraic_derivatives(
     )
     if n_y > ALGEBRAIC_DERIVATIVE_LIMIT or len(rows) == 0:
         raise unsupported
-    g = yb.y.toarray()[rows]
-    rhs = -np.hstack([yb.x.toarray()[rows], yb.u.toarray()[rows]])
-    solution, *_ = np.linalg.lstsq(g, rhs, rcond=None)
-    if np.linalg.norm(g @ solution - rhs) > 1e-9 * max(np.linalg.norm(rhs), 1e-300):
+    # Judged on the equilibrated rows (every row and column peaking at 1), so that the rank and
+    # residual decisions do not depend on the units of the unknowns.
+    r_scale, c_scale = _equilibrate(sp.csr_array(yb.y.toarray()[rows]))
+    g = r_scale[:, None] * yb.y.toarray()[rows] * c_scale[None, :]
+    rhs = -r_scale[:, None] * np.hstack([yb.x.toarray()[rows], yb.u.toarray()[rows]])
+    scaled_solution, *_ = np.linalg.lstsq(g, rhs, rcond=None)
+    if np.linalg.norm(g @ scaled_solution - rhs) > 1e-9 * max(np.linalg.norm(rhs), 1e-300):
         raise unsupported
-    kernel = sla.null_space(g) if g.shape[0] else np.eye(n_y)
+    kernel = sla.null_space(g, rcond=1e-12) if g.shape[0] else np.eye(n_y)
     if kernel.size and np.max(np.abs(kernel[z])) > 1e-9:
         raise unsupported  # the derivative-free rows leave y_Z undetermined
+    solution = c_scale[:, None] * scaled_solution
     nx_ = yb.x.shape[1]
     s_x = sp.csr_array(solution[z, :nx_])
     s_u = sp.csr_array(solution[z, nx_:])
@@ -661,14 +965,13 @@ def reduce_to_state_space(
     """
     m = len(netlist.sources)
     G, E, F = equations.G, equations.E, equations.F
-    scale = max(np.abs(G.data).max() if G.nnz else 0.0, np.abs(E.data).max() if E.nnz else 0.0)
     involved = _controlled_labels(netlist)
 
     yb = _eliminate_sources_and_excess(
         _rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y), equations, classes, m
     )
-    if not _is_zero(yb.dy, scale):
-        yb = _substitute_algebraic_derivatives(yb, scale, involved, netlist)
+    if yb.dy.nnz:
+        yb = _substitute_algebraic_derivatives(yb, involved, netlist)
     resistive_msg = "the resistive part of the circuit has no unique solution for these values" + (
         f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
     )
@@ -688,7 +991,7 @@ def reduce_to_state_space(
     xb = _eliminate_sources_and_excess(
         _rows(G, classes.x), _rows(E, classes.x), _rows(F, classes.x), equations, classes, m
     )
-    if not (_is_zero(xb.dy @ R, scale) and _is_zero(xb.dy @ S, scale)):
+    if not (_negligible(xb.dy, R) and _negligible(xb.dy, S)):
         raise NotSupportedError(
             "the circuit needs second derivatives of its variables (higher index); not supported",
             netlist.elements[0].loc,
@@ -729,6 +1032,7 @@ def reduce_to_state_space(
     C_q = _clean(C @ T_inv)
     K_q = _clean(T @ K)
 
+    _check_finite(netlist, {"A": A_q, "B": B_q, "C": C_q, "D": D_z, "D1": D1})
     states = tuple(state_name(circuit.branches[k].element) for k in classes.x)
     inputs = tuple(e.name for e in netlist.sources)
     info = CompileInfo(
@@ -751,6 +1055,25 @@ def reduce_to_state_space(
         netlist.title,
         info,
         pencil=Pencil(G, E, nx_, equations.G_data),
+    )
+
+
+def _check_finite(netlist: Netlist, matrices: dict[str, sp.csr_array]) -> None:
+    """Refuse a model with overflowed (infinite or NaN) entries, naming the most extreme value.
+
+    Element values near the ends of double precision (1e-308 Ω) make
+    products such as 1/(R·C) overflow; a model holding ``inf`` would be
+    a wrong number, not a model.
+    """
+    bad = [name for name, m in matrices.items() if m.nnz and not np.all(np.isfinite(m.data))]
+    if not bad:
+        return
+    valued = [e for e in netlist.elements if e.value != 0 and np.isfinite(e.value)]
+    worst = max(valued, key=lambda e: abs(np.log10(abs(e.value))), default=netlist.elements[0])
+    raise NetlistError(
+        f"{worst.label}: value {worst.value:g} overflows double precision in the model "
+        f"({', '.join(bad)} would hold infinite entries); use values within about 1e-150…1e150",
+        worst.loc,
     )
 
 
@@ -804,8 +1127,10 @@ def _outputs(
     c_u = block.u + block.y @ Q
     c_du = block.du + block.y @ S
     if block.dy.nnz:
-        if not (_is_zero(block.dy @ R, 1.0) and _is_zero(block.dy @ S, 1.0)):
-            raise UsageError("an output needs second derivatives of the circuit variables; not supported")
+        if not (_negligible(block.dy, R) and _negligible(block.dy, S)):
+            raise OutputDerivativeError(
+                "an output needs second derivatives of the circuit variables; not supported"
+            )
         c_dx = c_dx + block.dy @ P
         c_du = c_du + block.dy @ Q
     C = _clean(c_x + c_dx @ A)

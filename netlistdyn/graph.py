@@ -162,7 +162,9 @@ class TreeSplit:
         return [int(k) for k in col.row]
 
 
-def build_graph(netlist: Netlist, swapped: frozenset[str] = frozenset()) -> CircuitGraph:
+def build_graph(
+    netlist: Netlist, swapped: frozenset[str] = frozenset(), resistive: frozenset[Kind] = frozenset()
+) -> CircuitGraph:
     """Make the branch graph of a netlist.
 
     Parameters
@@ -172,6 +174,11 @@ def build_graph(netlist: Netlist, swapped: frozenset[str] = frozenset()) -> Circ
     swapped : frozenset of str
         Keys of transformers whose second port is to be preferred in the
         tree (see :func:`normal_tree`).
+    resistive : frozenset of Kind
+        Controlled-source kinds whose output port takes a resistor's tree
+        priority instead of a source's: a VCCS driven by its own terminals
+        is a conductance, and as a link it would make an inductor in series
+        with it an excess element although its current is a state.
 
     Returns
     -------
@@ -194,7 +201,8 @@ def build_graph(netlist: Netlist, swapped: frozenset[str] = frozenset()) -> Circ
             branches.append(Branch(len(branches), element, 1, p2, n2, second))
             continue
         pos, neg = element.nodes
-        branches.append(Branch(len(branches), element, 0, pos, neg, _ROLE_OF_KIND[element.kind]))
+        role = Role.RESISTOR if element.kind in resistive else _ROLE_OF_KIND[element.kind]
+        branches.append(Branch(len(branches), element, 0, pos, neg, role))
     graph = nx.MultiGraph()
     graph.add_node(GROUND)
     for branch in branches:

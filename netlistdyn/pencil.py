@@ -315,14 +315,21 @@ def check_eigenvalue(
 ) -> CheckedEigenvalue | None:
     """Refine one eigenvalue on the pencil and bound its error.
 
+    Newton's method on the eigenpair: the bordered system
+    [[G + λE, E w], [e_kᵀ, 0]] [δw; δλ] = −[(G + λE) w; 0] with the
+    residual in extended precision refines λ and every component of w
+    (whose entries may span 20 decades) to working accuracy — iterative
+    refinement, so the double-precision factorisation only has to be
+    roughly right.
+
     Parameters
     ----------
     pencil : Pencil
     value : complex
         An eigenvalue of A (1/s).
     exact_residual : bool
-        Newton residuals in extended precision (resolves real parts far
-        below eps·|λ|); otherwise in double.
+        Residuals in extended precision (resolves real parts far below
+        eps·|λ|); otherwise in double.
 
     Returns
     -------
@@ -336,30 +343,45 @@ def check_eigenvalue(
         return None
     prep = pencil if isinstance(pencil, _Prepared) else _prepare(pencil)
     G, E = prep.G, prep.E
+    n = G.shape[0]
     residual = _Residual(prep.G_coo, prep.E_coo, exact_residual)
     lam0 = complex(value)
-    vectors = _pair(G, E, lam0, _start_vectors(G.shape[0]))
+    vectors = _pair(G, E, lam0, _start_vectors(n))
     if vectors is None:
         return None
-    lam, (w, z) = residual.start(lam0), vectors
+    w, z = vectors
+    k = int(np.argmax(np.abs(w)))
+    w = w / w[k]
+    lam = residual.start(lam0)
     history: list[tuple[object, float, np.ndarray, np.ndarray]] = []
     for _ in range(NEWTON_STEPS + 1):
-        d = np.vdot(z, E @ w)
-        if d == 0 or not np.isfinite(d):
+        r = residual(lam, w)
+        lam_c = complex(lam)
+        border = sp.csr_array(
+            sp.block_array(
+                [
+                    [G + lam_c * E, sp.csr_array((E @ w)[:, None])],
+                    [sp.csr_array((np.array([1.0 + 0j]), ([0], [k])), shape=(1, n)), None],
+                ],
+                format="csr",
+            )
+        )
+        try:
+            factor = _Factor(border)
+        except ZeroDivisionError:
             break
-        step = complex(-np.vdot(z, residual(lam, w)) / d)
-        if not np.isfinite(step):
+        with np.errstate(all="ignore"):
+            delta = factor.solve(-np.concatenate([r, [0.0]]))
+        if not np.all(np.isfinite(delta)):
             break
+        step = complex(delta[-1])
         history.append((lam, abs(step), w, z))
-        if step == 0 or abs(step) <= EPS * EPS * abs(complex(lam)):
+        if step == 0 or abs(step) <= EPS * EPS * abs(lam_c):
             break
         if len(history) >= 3 and abs(step) >= history[-2][1]:
-            break  # no longer converging: at the rounding floor
+            break  # at the rounding floor
         lam = residual.add(lam, step)
-        vectors = _pair(G, E, complex(lam), (w, z))
-        if vectors is None:
-            break
-        w, z = vectors
+        w = w + delta[:-1]
     return _finish(history, prep, residual, lam0)
 
 
@@ -369,8 +391,15 @@ def _finish(
     residual: _Residual,
     lam0: complex,
 ) -> CheckedEigenvalue | None:
-    """Take the last iterate that still converged; bars from the data and the computation."""
-    for lam, step, w, z in reversed(history):
+    """Keep the iterate with the smallest backward error (the input included: never worse).
+
+    Its bars add the data's part — each element value's rounding to a
+    double, a real relative change of at most eps — and the computation's:
+    the remaining Newton correction and the floor set by the residual's
+    precision through the eigenvectors' rounding.
+    """
+    best: tuple[float, float, complex, tuple[float, float, float, float]] | None = None
+    for lam, step, w, z in history:
         lam_c = complex(lam)
         bars = _bars(prep, lam_c, w, z)
         if bars is None:
@@ -381,44 +410,152 @@ def _finish(
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(scale > 0, np.abs(r) / scale, np.where(r == 0, 0.0, np.inf))
         eta = min(float(np.max(ratio)) if ratio.size else 0.0, eta_double)
-        if eta > 1e-6:
-            continue  # not an eigenvalue of the pencil to any useful accuracy
-        # Computation: the remaining Newton correction (an over-estimate once converging) and the
-        # floor set by the residual's precision through the eigenvectors' rounding.
-        floor = (EPS * EPS if residual.exact else EPS) * kappa
-        computation = SAFETY * (step + floor)
-        if not residual.exact:
-            kappa_re = kappa_im = kappa_data
-        # Data: each element value's rounding to a double (a real relative change of at most eps).
-        data = SAFETY * EPS
-        return CheckedEigenvalue(
-            lam_c,
-            data * kappa_data + computation,
-            data * kappa_re + computation,
-            data * kappa_im + computation,
-            eta,
-            refined=lam_c != lam0,
-        )
-    return None
+        if best is None or eta <= best[0]:
+            best = (eta, step, lam_c, (kappa, kappa_data, kappa_re, kappa_im))
+    if best is None or best[0] > 1e-6:
+        return None  # not an eigenvalue of the pencil to any useful accuracy
+    eta, step, lam, (kappa, kappa_data, kappa_re, kappa_im) = best
+    # With an extended-precision residual the Newton correction bounds the remaining error; with a
+    # double one, the backward error times the full condition number does.
+    floor = EPS * EPS * kappa if residual.exact else eta * kappa + EPS * kappa
+    computation = SAFETY * (step + floor)
+    if not residual.exact:
+        kappa_re = kappa_im = kappa_data
+    data = SAFETY * EPS
+    return CheckedEigenvalue(
+        lam,
+        data * kappa_data + computation,
+        data * kappa_re + computation,
+        data * kappa_im + computation,
+        eta,
+        refined=lam != lam0,
+    )
 
 
-def check_spectrum(pencil: Pencil, values: np.ndarray) -> list[CheckedEigenvalue | None]:
-    """:func:`check_eigenvalue` for each value, keeping distinct eigenvalues distinct.
+#: Pencils up to this size also give starting values of their own (QZ), for when A is poor.
+QZ_LIMIT = 400
 
-    When two inputs that were told apart converge to the same pencil
-    eigenvalue (within their bars), neither is trusted (None).
+
+def check_spectrum(
+    pencil: Pencil, values: np.ndarray, bounds: np.ndarray | None = None
+) -> list[tuple[int, CheckedEigenvalue | None]]:
+    """Verify and refine a whole spectrum on the pencil.
+
+    Each eigenvalue of A starts Newton's method. When A itself is poor — at
+    wide spreads the reduction can misplace an eigenvalue by orders of
+    magnitude, and Newton's method then lands on a neighbour that another
+    start already found — so the pencil's own QZ eigenvalues (equilibrated,
+    for pencils up to :data:`QZ_LIMIT`) are starting values too. Verified
+    eigenvalues equal within their bars form one group, counted as often as
+    QZ found it (the pencil's own multiplicity), or, where QZ did not see
+    it (QZ loses the largest roots to infinity), as often as A's starts
+    reached it without jumping.
+
+    Parameters
+    ----------
+    pencil : Pencil
+    values : numpy.ndarray
+        Eigenvalues of A (1/s).
+    bounds : numpy.ndarray, optional
+        Their error estimates from A (1/s); a start "jumped" when Newton's
+        method moved it further than both bounds.
+
+    Returns
+    -------
+    list of (int, CheckedEigenvalue or None)
+        One entry per eigenvalue of A: ``(-1, verified)``, or ``(k, None)``:
+        input k keeps its own estimate.
     """
     prep = _prepare(pencil)
-    exact = (prep.G.nnz + prep.E.nnz) * max(len(values), 1) <= EXACT_RESIDUAL_BUDGET
-    checked = [check_eigenvalue(prep, v, exact) for v in values]
-    for i in range(len(values)):
-        for j in range(i + 1, len(values)):
-            a, b = checked[i], checked[j]
-            if a is None or b is None:
-                continue
-            bound = a.abs_error + b.abs_error
-            if abs(a.value - b.value) <= bound and abs(values[i] - values[j]) > bound + abs(
-                a.value - values[i]
-            ) + abs(b.value - values[j]):
-                checked[i] = checked[j] = None
-    return checked
+    n = len(values)
+    bounds = np.zeros(n) if bounds is None else np.asarray(bounds, dtype=float)
+    exact = (prep.G.nnz + prep.E.nnz) * max(n, 1) <= EXACT_RESIDUAL_BUDGET
+    from_a = [check_eigenvalue(prep, v, exact) for v in values]
+    jumped = [
+        r is not None and abs(r.value - values[k]) > 2 * max(r.abs_error, _finite(bounds[k]))
+        for k, r in enumerate(from_a)
+    ]
+    from_qz: list[CheckedEigenvalue] = []
+    if prep.G.shape[0] <= QZ_LIMIT:
+        from_qz = [r for r in (check_eigenvalue(prep, v, exact) for v in _qz(prep)) if r is not None]
+    groups = _group(from_a, from_qz)
+    plan = []
+    for ks, qs in groups:
+        kept = [k for k in ks if not jumped[k]]
+        # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
+        # otherwise A's starts that did not jump there.
+        count = len(qs) if qs else max(len(kept), 1)
+        represented = (kept + [k for k in ks if jumped[k]])[:count]
+        plan.append((ks, qs, count, represented, max(len(kept), 1)))
+    while sum(p[2] for p in plan) > n:
+        # Over-counted: first a group QZ counted above A's evidence, then one A never reached.
+        j = max(range(len(plan)), key=lambda i: (plan[i][2] > plan[i][4], not plan[i][0], plan[i][2]))
+        ks, qs, count, represented, evidence = plan[j]
+        plan[j] = (ks, qs, count - 1, represented[: count - 1], evidence)
+    slots: list[tuple[int, CheckedEigenvalue | None]] = []
+    done: set[int] = set()
+    for ks, qs, count, represented, _ in plan:
+        if count <= 0:
+            continue
+        members = [from_a[k] for k in ks] + qs
+        best = min((r for r in members if r is not None), key=lambda r: r.abs_error)
+        slots.extend((-1, best) for _ in range(count))
+        done |= set(represented)
+    spare = [k for k in range(n) if k not in done]
+    slots.extend((k, None) for k in spare[: n - len(slots)])
+    return slots
+
+
+def _finite(value: float) -> float:
+    return value if np.isfinite(value) else 0.0
+
+
+def _group(
+    from_a: list[CheckedEigenvalue | None], from_qz: list[CheckedEigenvalue]
+) -> list[tuple[list[int], list[CheckedEigenvalue]]]:
+    """Verified results equal within their bars: (indices of A starts, results of QZ starts)."""
+    groups: list[tuple[list[int], list[CheckedEigenvalue], CheckedEigenvalue]] = []
+    items: list[tuple[int, CheckedEigenvalue]] = [(k, r) for k, r in enumerate(from_a) if r is not None]
+    items += [(-1, r) for r in from_qz]
+    for k, result in items:
+        for ks, qs, head in groups:
+            if abs(head.value - result.value) <= head.abs_error + result.abs_error:
+                (ks.append(k) if k >= 0 else qs.append(result))
+                break
+        else:
+            groups.append(([k], [], result) if k >= 0 else ([], [result], result))
+    return [(ks, qs) for ks, qs, _ in groups]
+
+
+def _qz(prep: _Prepared) -> list[complex]:
+    """Finite generalized eigenvalues of the (equilibrated) pencil, as extra starting values."""
+    g, e = prep.G.toarray(), prep.E.toarray()
+    scale_r = 1.0 / np.maximum(np.max(np.abs(g), axis=1), np.max(np.abs(e), axis=1)).clip(min=1e-300)
+    g, e = g * scale_r[:, None], e * scale_r[:, None]
+    scale_c = 1.0 / np.maximum(np.max(np.abs(g), axis=0), np.max(np.abs(e), axis=0)).clip(min=1e-300)
+    g, e = g * scale_c[None, :], e * scale_c[None, :]
+    try:
+        alpha, beta = sla.eigvals(-g, e, homogeneous_eigvals=True)
+    except (sla.LinAlgError, ValueError):
+        return []
+    finite = np.abs(beta) > 1e-14 * np.abs(alpha)
+    return [complex(v) for v in alpha[finite] / beta[finite] if v != 0]
+
+
+def structural_zeros(pencil: Pencil) -> int:
+    """Number of zero eigenvalues that the topology alone guarantees.
+
+    G (the pencil at λ = 0) is singular for every choice of element values
+    when its sparsity pattern has no perfect matching — a loop of inductors
+    (a conserved flux) or a cutset of capacitors (a conserved charge). Its
+    structural rank deficiency is a lower bound on the multiplicity of the
+    eigenvalue 0, decided exactly, independent of units and rounding.
+    """
+    from scipy.sparse.csgraph import structural_rank
+
+    rows, cols = _deflate(pencil.G, pencil.E)
+    G = sp.csr_array(sp.csr_array(pencil.G)[rows][:, cols])
+    G.eliminate_zeros()
+    if G.shape[0] == 0:
+        return 0
+    return int(G.shape[0] - structural_rank(sp.csr_matrix(G)))

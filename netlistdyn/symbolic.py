@@ -183,8 +183,9 @@ def symbolic_model(
         return _exact(element.value)
 
     def mutual(coupling: Element, la: Element, lb: Element) -> sympy.Expr:
-        sign = 1 if la.value > 0 else -1
-        return sign * value(coupling) * sympy.sqrt(value(la) * value(lb))
+        # As ngspice: M = k·sqrt(|La·Lb|), positive whatever the signs of the inductances.
+        sign = 1 if la.value * lb.value > 0 else -1
+        return value(coupling) * sympy.sqrt(sign * value(la) * value(lb))
 
     A, B, C, D, D1 = _reduce(form, value, mutual, rod_length)
     model = form.model

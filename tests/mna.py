@@ -181,7 +181,7 @@ def build_mna(netlist: Netlist) -> MNA:
         elif k is Kind.COUPLING:
             a, b = e.coupled
             la, lb = inductors[a].value, inductors[b].value
-            mutual = e.value * np.sqrt(la * lb)
+            mutual = e.value * np.sqrt(abs(la * lb))  # as ngspice, whatever the signs
             C[branch_index[a], branch_index[b]] -= mutual
             C[branch_index[b], branch_index[a]] -= mutual
         elif k is Kind.TRANSFORMER:

@@ -18,7 +18,7 @@ from netlistdyn.cli import main
 from netlistdyn.errors import UsageError
 from netlistdyn.exports import load_model, save_model
 
-from .conftest import NETLISTS, compile_file, match_spectra
+from .conftest import NETLISTS, compile_file, compile_string, match_spectra
 
 
 def test_cart_transfer_function_matches_seed_002() -> None:
@@ -178,7 +178,8 @@ def test_canonical_forms_of_the_cart_match_seed_002() -> None:
 
 
 def test_canonical_form_refused_when_uncontrollable() -> None:
-    model = compile_file("dipc.cir", outputs=["x(cart)", "x(b1)", "x(b2)"])  # redundant integrators
+    # C2's charge is reached by no source: an uncontrollable mode.
+    model = compile_string("uncontrollable\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 b 0 1k\nC2 b 0 1u\n.end\n")
     with pytest.raises(UsageError, match="no input controls every state"):
         control.controller_form(model)
     result = CliRunner().invoke(

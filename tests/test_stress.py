@@ -79,10 +79,22 @@ def test_triangular_double_eigenvalue_is_exact() -> None:
     exact under the perturbations the element values allow, and reported without a warning."""
     from netlistdyn.formulate import compile_netlist
     from netlistdyn.parser import parse_text
+    from tests.exact_pencil import exact_natural_frequencies
 
     text = (NETLISTS / "controlled.cir").read_text().replace("C3 g 0 2.2u", "C3 g 0 1u")
-    eig = analyze_eigenvalues(compile_netlist(parse_text(text)).A_sparse)
-    assert sum(1 for m in eig.modes if m.value == -1000) == 2
+    netlist = parse_text(text)
+    model = compile_netlist(netlist)
+    eig = analyze_eigenvalues(model.A_sparse, pencil=model.pencil)
+    exact = exact_natural_frequencies(netlist)
+    assert sum(1 for e in exact if abs(e + 1000) <= 1e-9) == 2  # the reference has the double root
+    near = [m for m in eig.modes if abs(m.value + 1000) <= 1]
+    assert len(near) == 2
+    # Each within its own reported bound of the exact root (the bound is what is under test), and
+    # the bound is below the level at which the report warns (a defective pair's first-order
+    # bound on the circuit equations is pessimistic, but not enough to doubt the value).
+    from netlistdyn.analysis import TRUST_RTOL
+
+    assert all(abs(m.value + 1000) <= m.abs_error and m.rel_error <= TRUST_RTOL for m in near)
     assert not eig.warnings
 
 
