@@ -593,10 +593,15 @@ def check_couplings(netlist: Netlist) -> None:
     NetlistError
         Naming the couplings of the offending group.
     """
-    couplings = [e for e in netlist.elements if e.kind is Kind.COUPLING]
+    inductors = {e.key: e for e in netlist.elements if e.kind is Kind.INDUCTOR}
+    # A coupling naming no inductor is reported by the graph's reference check.
+    couplings = [
+        e
+        for e in netlist.elements
+        if e.kind is Kind.COUPLING and e.coupled is not None and all(n in inductors for n in e.coupled)
+    ]
     if not couplings:
         return
-    inductors = {e.key: e for e in netlist.elements if e.kind is Kind.INDUCTOR}
     parent: dict[str, str] = {}
 
     def root(key: str) -> str:
