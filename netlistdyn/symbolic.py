@@ -41,6 +41,7 @@ from .formulate import (
     branch_laws,
     classify,
     formulate,
+    held_displacements,
     primary_maps,
 )
 from .mechanics import carried_masses
@@ -333,10 +334,25 @@ def _reduce(
     solved_x = -_solve(mass, rhs)
     A, B, K = solved_x[:, :nx_], solved_x[:, nx_ : nx_ + m], solved_x[:, nx_ + m :]
 
-    # Outputs, as in formulate._outputs.
+    # Outputs, as in formulate._outputs; displacements that springs hold as sums of fluxes
+    # (formulate.held_displacements decides which, for both paths).
+    held = held_displacements(form.netlist, form.probes)
+    branch_of = {b.element.key: b for b in circuit.branches}
+    by_key = {e.key: e for e in form.netlist.elements}
     rows = []
-    for probe in form.probes:
-        if probe.kind in ("v", "x"):
+    for j, probe in enumerate(form.probes):
+        if j in held:
+            row = sympy.zeros(1, n)
+            for key, sign in held[j][1]:
+                row += sign * value(by_key[key]) * imap.extract([branch_of[key].index], list(range(n)))
+                for coupling in form.netlist.elements:
+                    if coupling.kind is Kind.COUPLING and coupling.coupled and key in coupling.coupled:
+                        a, b = coupling.coupled
+                        other = b if a == key else a
+                        m_ab = mutual(coupling, by_key[a], by_key[b])
+                        row += sign * m_ab * imap.extract([branch_of[other].index], list(range(n)))
+            rows.append(row)
+        elif probe.kind in ("v", "x"):
             rows.append(_from_sparse(_potential_rows(tree, [probe.nodes], n)))
         else:
             branch = next(b for b in circuit.branches if b.element.key == probe.element)
@@ -369,7 +385,7 @@ def _reduce(
         A, B, C = T * A * T_inv, T * B, C * T_inv
 
     # Displacement outputs x(n): integrators appended after the circuit's states.
-    picks = [j for j, p in enumerate(form.probes) if p.kind == "x"]
+    picks = [j for j, p in enumerate(form.probes) if p.kind == "x" and j not in held]
     if picks:
         A = sympy.Matrix.vstack(
             sympy.Matrix.hstack(A, sympy.zeros(nx_, len(picks))),
@@ -381,6 +397,11 @@ def _reduce(
         C = sympy.Matrix.hstack(keep * C, select)
         D = keep * D + select * _rows(D1, picks)
         D1 = keep * D1
+    for j, (base, _) in held.items():  # a position in a free chain: another's plus fluxes
+        if base is not None:
+            C[j, :] = C[j, :] + C[base, :]
+            D[j, :] = D[j, :] + D[base, :]
+            D1[j, :] = D1[j, :] + D1[base, :]
     return tuple(sympy.ImmutableMatrix(M.applyfunc(_tidy)) for M in (A, B, C, D, D1))
 
 

@@ -278,11 +278,15 @@ def test_spring_force_sign_and_displacement() -> None:
     assert dc[1] == pytest.approx(1.0, rel=1e-6)
 
 
-def test_displacement_state_only_when_asked() -> None:
+def test_displacement_state_only_when_needed() -> None:
+    """Springs to the frame hold x(b2): no integrator. A free cart's position needs one."""
     assert compile_file("two_blocks.cir").nstates == 4
     model = compile_file("two_blocks.cir", outputs=["x(b2)", "v(b1)"])
-    assert model.nstates == 5 and model.info.integrators == ("x(b2)",)
+    assert model.nstates == 4 and model.info.integrators == ()
     assert model.info.order == 4
+    cart = compile_file("dipc.cir", outputs=["x(cart)"])
+    assert cart.info.integrators == ("x(cart)",)
+    assert cart.nstates == cart.info.order + 1
 
 
 # --- subcircuits ----------------------------------------------------------------------
