@@ -40,7 +40,7 @@ from .errors import NetlistError, SingularCircuitError, SourceLocation, Topology
 from .graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
 from .mechanics import state_prefix
 from .model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceModel
-from .netlist import GROUND, Element, Kind, Netlist
+from .netlist import GROUND, Diagnostic, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
 
 #: A factorisation whose pivots span more than this ratio is treated as singular.
@@ -137,7 +137,6 @@ def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formula
     probes = (
         tuple(parse_probe(text, netlist) for text in outputs) if outputs else tuple(default_probes(netlist))
     )
-    check_couplings(netlist)
     check_value_range(netlist)
     failure: NetlistError | None = None
     topology: TopologyError | None = None
@@ -579,19 +578,21 @@ def check_value_range(netlist: Netlist) -> None:
             )
 
 
-def check_couplings(netlist: Netlist) -> None:
-    """Refuse coupled inductors whose inductance matrix is not positive definite.
+def check_couplings(netlist: Netlist) -> tuple[Diagnostic, ...]:
+    """Warn about coupled inductors whose inductance matrix is not positive definite.
 
     Each group of inductors joined by ``K`` elements (couplings on one pair
-    add, as in ngspice) must have a positive definite inductance matrix when
-    its inductances are positive: otherwise the stored energy ½ iᵀ L i can
-    be negative (total coupling of 1 or more), which no magnetic circuit
-    does, and the model would report a spurious instability or none at all.
+    add, as in ngspice) has a positive definite inductance matrix in any
+    magnetic circuit when its inductances are positive; otherwise the stored
+    energy ½ iᵀ L i can be negative (a total coupling of 1 or more). ngspice
+    and Xyce read such a netlist all the same (Xyce's regression suite has
+    one), so it is compiled with the same meaning — its model is then not
+    passive and typically unstable — and the couplings are named in a warning.
 
-    Raises
-    ------
-    NetlistError
-        Naming the couplings of the offending group.
+    Returns
+    -------
+    tuple of Diagnostic
+        One warning per offending group, at its first coupling.
     """
     inductors = {e.key: e for e in netlist.elements if e.kind is Kind.INDUCTOR}
     # A coupling naming no inductor is reported by the graph's reference check.
@@ -601,7 +602,7 @@ def check_couplings(netlist: Netlist) -> None:
         if e.kind is Kind.COUPLING and e.coupled is not None and all(n in inductors for n in e.coupled)
     ]
     if not couplings:
-        return
+        return ()
     parent: dict[str, str] = {}
 
     def root(key: str) -> str:
@@ -618,10 +619,11 @@ def check_couplings(netlist: Netlist) -> None:
     for k in couplings:
         assert k.coupled is not None
         groups.setdefault(root(k.coupled[0]), []).append(k)
+    found = []
     for members in groups.values():
         names = sorted({name for k in members for name in k.coupled or ()})
         if any(inductors[name].value <= 0 for name in names):
-            continue  # negative inductances: no energy argument; singularity is caught later
+            continue  # negative inductances: no energy argument
         pos = {name: j for j, name in enumerate(names)}
         matrix = np.diag([inductors[name].value for name in names])
         for k in members:
@@ -635,11 +637,15 @@ def check_couplings(netlist: Netlist) -> None:
         coupling_matrix = matrix * d[:, None] * d[None, :]
         if np.linalg.eigvalsh(coupling_matrix).min() <= 4 * len(names) * float(np.finfo(float).eps):
             labels = ", ".join(k.label for k in members)
-            raise NetlistError(
-                f"{labels}: the inductance matrix of {', '.join(inductors[n].label for n in names)} is not "
-                "positive definite (total coupling of 1 or more): not a physical set of coupled inductors",
-                members[0].loc,
+            found.append(
+                Diagnostic(
+                    members[0].loc,
+                    f"{labels}: the inductance matrix of {', '.join(inductors[n].label for n in names)} is "
+                    "not positive definite (total coupling of 1 or more): no magnetic circuit does this; "
+                    "compiled as ngspice reads it, the model is not passive",
+                )
             )
+    return tuple(found)
 
 
 def _triplets(entries: list[tuple[int, int, Any]], shape: tuple[int, int]) -> sp.csr_array:
@@ -1045,8 +1051,8 @@ def reduce_to_state_space(
         tree=tuple(b.label for b in circuit.branches if tree.in_tree[b.index]),
         excess=_excess(circuit, tree, classes),
         shifts=_shifts(K_q, states, inputs),
-        warnings=netlist.warnings,
-        passive=is_passive(netlist),
+        warnings=netlist.warnings + check_couplings(netlist),
+        passive=is_passive(netlist) and not check_couplings(netlist),
     )
     return StateSpaceModel(
         sp.csr_array(A_q),
