@@ -179,7 +179,7 @@ def test_canonical_forms_of_the_cart_match_seed_002() -> None:
 
 def test_canonical_form_refused_when_uncontrollable() -> None:
     # C2's charge is reached by no source: an uncontrollable mode.
-    model = compile_string("uncontrollable\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 b 0 1k\nC2 b 0 1u\n.end\n")
+    model = compile_string("uncontrollable\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 b 0 1k\nC2 b 0 2.2u\n.end\n")
     with pytest.raises(UsageError, match="no input controls every state"):
         control.controller_form(model)
     result = CliRunner().invoke(
