@@ -34,7 +34,7 @@ import itertools
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 
 import numpy as np
@@ -46,7 +46,7 @@ from scipy.integrate import solve_ivp
 from ._pade_table import DIAGONAL_12_12, SUBDIAGONAL_11_12
 from .analysis import largest_eigenvalues
 from .model import StateSpaceModel
-from .simulate import InputSignals, refine_grid, simulate_foh
+from .simulate import InputSignals, propagate_foh, refine_grid
 
 #: Largest model the dense ``exact`` method accepts (and ``auto`` picks).
 EXACT_LIMIT = 400
@@ -76,7 +76,9 @@ class SimResult:
     seconds : float
         Wall time of the integration (s).
     status : str
-        ``ok``, ``refused``, ``diverged``, ``failed`` or ``timeout``.
+        ``ok``; ``unverified`` (numbers returned, but their error estimate
+        exceeds the tolerance: the message says by how much); ``refused``,
+        ``diverged``, ``failed`` or ``timeout`` (no usable numbers).
     message : str
         Why, when not ok; notes otherwise.
     stats : dict
@@ -179,14 +181,18 @@ def run(
                 "refused",
                 f"exact (dense) method refused for {model.nstates} states: use rational",
             )
-        y, _ = simulate_foh(model, signals, times, x0, progress)
-        return _finish(times, y, method, "dense expm", start)
+        foh = propagate_foh(model, signals, times, x0, progress, rtol)
+        stats = {"error_estimate": foh.error}
+        result = _finish(times, foh.outputs, method, f"{foh.path}, rtol={rtol:g}", start, stats, foh.message)
+        if result.ok and not foh.verified:
+            return replace(result, status="unverified")
+        return result
     if method == "rational":
         return _rational(model, signals, times, rtol, x0, progress, start)
     if method == "krylov":
         return _krylov(model, signals, times, x0, start)
     if method in IVP_METHODS:
-        return _ivp(model, signals, times, method, rtol, atol, x0, force, start)
+        return _ivp(model, signals, times, method, rtol, atol, x0, force)
     raise ValueError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
 
 
@@ -283,8 +289,11 @@ def _rational(
     x0: NDArray[np.float64] | None,
     progress: Callable[[float], None] | None,
     start: float,
+    states_out: list[NDArray[np.float64]] | None = None,
 ) -> SimResult:
     """Adaptive Padé stepping; see the module docstring.
+
+    ``states_out``, when given, receives the states at ``times``.
 
     Error control compares the L-stable [11/12] step with the diagonal
     [12/12] step from the same state: both are accurate to ~1e-14 wherever
@@ -323,8 +332,14 @@ def _rational(
     # no growing mode their content only decays: the check can be skipped for a few
     # steps of an unchanged length once it has passed with a wide margin.
     growing = _has_growing_mode(model)
-    checked_level, unchecked, last_error = -1, 0, math.inf
+    # The trust is keyed to the step length itself: a level is relative to its interval, and a
+    # micro-interval (a PWL corner within rounding of an output time) that passed at level 0
+    # says nothing about the full interval after it.
+    checked_h, unchecked, last_error = math.nan, 0, math.inf
     stats["checks"] = 0
+    # rtol bounds the global error: each step may use its share h/T of it (errors of a
+    # non-growing model add up at most), but never less than the estimate's rounding floor.
+    horizon = float(events[-1] - events[0]) if events.size > 1 else 0.0
     for k in range(1, events.size):
         length = events[k] - events[k - 1]
         if length <= 0 or n == 0:
@@ -341,16 +356,17 @@ def _rational(
             u_here = u0 + slope * (done * length)
             damped = stepper(h, False)(x, u_here, slope)
             scale = max(scale, float(np.max(np.abs(damped))))
-            trusted = not growing and level == checked_level and unchecked < 16 and last_error < rtol * 0.1
+            tol = max(rtol * h / horizon, RATIONAL_ROUNDING) if horizon > 0 else rtol
+            trusted = not growing and h == checked_h and unchecked < 16 and last_error < tol * 0.1
             if trusted:
                 error = last_error
                 unchecked += 1
             else:
                 kept = stepper(h, True)(x, u_here, slope)
                 error = float(np.max(np.abs(damped - kept))) / scale
-                checked_level, unchecked, last_error = level, 0, error
+                checked_h, unchecked, last_error = h, 0, error
                 stats["checks"] += 1
-            if error > rtol and level < depth_limit:
+            if error > tol and level < depth_limit:
                 level += 1
                 stats["rejected"] += 1
                 continue
@@ -359,13 +375,13 @@ def _rational(
             stats["steps"] += 1
             # Coarsen when comfortably accurate and aligned with the coarser grid.
             coarse = done * 2 ** (level - 1)
-            if error < rtol * 1e-3 and level > 0 and abs(coarse - round(coarse)) < 1e-9:
+            if error < tol * 1e-3 and level > 0 and abs(coarse - round(coarse)) < 1e-9:
                 level -= 1
         if not np.all(np.isfinite(x)):
             break
         states[k] = x
         if k < events.size - 1 and events[k] in breakpoint_set:
-            checked_level = -1  # a kink in the input: check the next step
+            checked_h = math.nan  # a kink in the input: check the next step
         if progress is not None and k % 50 == 0:
             progress(k / events.size)
     index = np.searchsorted(events, times)
@@ -374,8 +390,13 @@ def _rational(
     y = xs @ model.C.T + us @ model.D.T
     if model.has_input_derivative:
         y = y + signals.derivative(times) @ model.D1.T
+    if states_out is not None:
+        states_out.append(xs)
     return _finish(times, y, "rational", f"rtol={rtol:g}", start, stats)
 
+
+#: Below this, the difference of the two Padé steps is rounding (relative to the state): accepted.
+RATIONAL_ROUNDING = 1e-14
 
 #: Up to this many states the balancing is LAPACK's (dense); above, one sparse sweep.
 DENSE_BALANCE_LIMIT = 3000
@@ -466,11 +487,24 @@ def _ivp(
     atol: float | None,
     x0: NDArray[np.float64] | None,
     force: bool,
-    start: float,
 ) -> SimResult:
+    """scipy's solve_ivp with an absolute tolerance per state, checked against a reference.
+
+    solve_ivp's ``atol`` is absolute per state, and states here mix units
+    over many decades (fC of a femtofarad next to kA): one number for all of
+    them is either far above the small states or far below the large ones.
+    Unless ``atol`` is given, state i gets rtol × its own peak |xᵢ| over the
+    run, taken from a reference run (``exact`` up to :data:`EXACT_LIMIT`
+    states, else ``rational`` at rtol 1e-8) made before the clock starts.
+    solve_ivp controls only the local error, so the result is then compared
+    with that reference: the error relative to each output's peak is in
+    ``stats['error_vs_reference']``, and a result more than
+    :data:`IVP_GLOBAL_FACTOR` × rtol off is reported ``unverified``.
+    """
     n = model.nstates
     tstop = float(times[-1])
     setting = f"rtol={rtol:g}"
+    reference = _ivp_reference(model, signals, times, x0) if n else None
     if method in EXPLICIT and not force and n:
         rho = spectral_radius(model)
         steps = rho * tstop / 3.0  # explicit RK stability boundary ≈ 3 on the negative axis
@@ -485,11 +519,21 @@ def _ivp(
                 f"{method} is explicit and the model is stiff: stability alone needs about {steps:.2g} "
                 "steps (|λ|max·T/3); use exact, rational, Radau or BDF (or force it)",
             )
+    start = time.perf_counter()
     large = n > EXACT_LIMIT
     A = model.A_sparse if large else model.A
     B = model.B
-    scale = max(1.0, float(np.max(np.abs(signals(times)))) if model.ninputs else 1.0)
-    absolute = atol if atol is not None else rtol * scale * 1e-3
+    absolute: float | NDArray[np.float64]
+    if atol is not None:
+        absolute = atol
+        setting += f", atol={atol:g}"
+    elif reference is not None:
+        peaks = _state_peaks(model, signals, times, x0, reference[1])
+        floor = np.min(peaks[peaks > 0]) if np.any(peaks > 0) else 1.0
+        absolute = rtol * np.maximum(peaks, floor * 1e-6)
+        setting += ", atol=rtol·(peak of each state)"
+    else:
+        absolute = rtol
     breaks = signals.breakpoints
 
     piece_end = [math.inf]
@@ -540,4 +584,73 @@ def _ivp(
     y = out_states @ model.C.T + u @ model.D.T
     if model.has_input_derivative:
         y = y + signals.derivative(times) @ model.D1.T
-    return _finish(times, y, method, setting, start, stats)
+    result = _finish(times, y, method, setting, start, stats)
+    if reference is None or not result.ok:
+        return result
+    ref_y, _, ref_name = reference
+    peak = np.maximum(np.max(np.abs(ref_y), axis=0), np.finfo(float).tiny)
+    error = float(np.max(np.abs(y - ref_y) / peak)) if y.size else 0.0
+    result.stats["error_vs_reference"] = error
+    if error > IVP_GLOBAL_FACTOR * rtol:
+        return replace(
+            result,
+            status="unverified",
+            message=f"{method} is {error:.2g} of the peak away from {ref_name} (more than "
+            f"{IVP_GLOBAL_FACTOR:g} × rtol; solve_ivp's rtol bounds only the local error)",
+        )
+    return replace(result, message=f"{error:.2g} of the peak from {ref_name}")
+
+
+def _state_peaks(
+    model: StateSpaceModel,
+    signals: InputSignals,
+    times: NDArray[np.float64],
+    x0: NDArray[np.float64] | None,
+    states: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Each state's peak |xᵢ|, also between the output times for small models.
+
+    A fast transient after t = 0 or after an input breakpoint can peak far
+    above every sampled value (a charge reaching 5e-7 C within nanoseconds
+    and 2e-14 C at the samples): the exact solution is also evaluated at 40
+    log-spaced times after each of the first 20 breakpoints, down to a
+    thousandth of the fastest time constant.
+    """
+    peaks = np.max(np.abs(states), axis=0)
+    if model.nstates > EXACT_LIMIT or times.size < 2:
+        return peaks
+    tstop = float(times[-1])
+    fastest = spectral_radius(model)
+    if not fastest > 0:
+        return peaks
+    offsets = np.geomspace(min(1e-3 / fastest, tstop / 10), tstop, 40)
+    starts = np.union1d([0.0], signals.breakpoints[signals.breakpoints < tstop])[:20]
+    extra = np.union1d(times, np.clip((starts[:, None] + offsets[None, :]).ravel(), 0.0, tstop))
+    foh = propagate_foh(model, signals, extra, x0)
+    if np.all(np.isfinite(foh.states)):
+        peaks = np.maximum(peaks, np.max(np.abs(foh.states), axis=0))
+    return peaks
+
+
+#: A solve_ivp result further than this many times rtol from the reference is ``unverified``.
+IVP_GLOBAL_FACTOR = 1000.0
+
+
+def _ivp_reference(
+    model: StateSpaceModel, signals: InputSignals, times: NDArray[np.float64], x0: NDArray[np.float64] | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], str] | None:
+    """(outputs, states, name) of a trusted run at ``times``, for scales and the check."""
+    if model.nstates <= EXACT_LIMIT:
+        foh = propagate_foh(model, signals, times, x0)
+        if not np.all(np.isfinite(foh.states)):
+            return None
+        return foh.outputs, foh.states, f"exact ({foh.path})"
+    states: list[NDArray[np.float64]] = []
+    check = _rational(model, signals, times, IVP_REFERENCE_RTOL, x0, None, time.perf_counter(), states)
+    if not check.ok:
+        return None
+    return check.outputs, states[0], f"rational rtol={IVP_REFERENCE_RTOL:g}"
+
+
+#: Tolerance of the reference that sets solve_ivp's per-state scales above EXACT_LIMIT states.
+IVP_REFERENCE_RTOL = 1e-8

@@ -21,7 +21,7 @@ from .analysis import EigenAnalysis
 from .model import StateSpaceModel
 from .netlist import Netlist
 from .probes import Probe
-from .simulate import Horizon, input_signals, simulate_foh
+from .simulate import Horizon, input_signals, propagate_foh
 from .spice import SpiceRun, SpiceSettings, ngspice_source_name, run_original, run_polezero, run_transient
 
 #: Default pass threshold: max error relative to each waveform's peak (ngspice's default reltol).
@@ -278,7 +278,10 @@ def compare(
     start = time.perf_counter()
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     notes.extend(_impulse_notes(model, signals))
-    ours, _ = simulate_foh(model, signals, run.time)
+    foh = propagate_foh(model, signals, run.time)
+    ours = foh.outputs
+    if not foh.verified:
+        notes.append(f"the model's own result is not vouched for: {foh.message}")
     model_seconds = time.perf_counter() - start
     comparisons = []
     peaks = {

@@ -112,7 +112,10 @@ def test_solve_ivp_methods(method: str) -> None:
     signals = input_signals(net, 0.1, 20)
     exact = integrators.run(model, signals, times, "exact")
     result = integrators.run(model, signals, times, method, rtol=1e-9, atol=1e-12)
-    assert result.ok, result.message
+    if method == "DOP853":  # 3.8e-5 of the peak: more than 1000 × rtol, so reported as unverified
+        assert result.status == "unverified" and "solve_ivp's rtol bounds only" in result.message
+    else:
+        assert result.ok, result.message
     assert rel_err(result.outputs, exact.outputs) <= (DOP853_RTOL if method == "DOP853" else IVP_RTOL)
 
 

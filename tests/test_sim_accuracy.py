@@ -23,7 +23,7 @@ import pytest
 from netlistdyn import integrators
 from netlistdyn.formulate import compile_netlist
 from netlistdyn.parser import parse_text
-from netlistdyn.simulate import input_signals
+from netlistdyn.simulate import input_signals, refine_grid
 
 from .conftest import NETLISTS
 
@@ -105,3 +105,153 @@ def test_pwl_jump_servo_against_superposed_steps() -> None:
     ref_full = 3 * mp_step(model, times[::200])
     peak = np.maximum(np.max(np.abs(ref), axis=0), np.max(np.abs(ref_full), axis=0))
     assert np.max(np.abs(result.outputs[idx] - ref) / peak) <= JUMP_RTOL
+
+
+# --- issue 17 items 6 and 7: tiny outputs, wide value spreads -------------------------------
+
+SPREAD = """Issue 17 reproducer 6: a 1e12-stiff network whose output v(b) settles at 1e-9 V
+Vin in 0 1
+R1 in a 1e-3
+C1 a 0 1e-6
+R2 a b 1e9
+C2 b 0 1e-15
+L1 b 0 1e3
+R3 a 0 1e9
+L2 a c 1e-12
+R4 c 0 1e-3
+C3 c 0 1e6
+"""
+#: The exact method is held to its default tolerance, relative to v(b)'s own peak (the
+#: modal evaluation alone was 1.7e-5 off; the checked result measures ~2e-13).
+SPREAD_RTOL = 1e-9
+#: solve_ivp at rtol 1e-10 with per-state absolute tolerances: measured 7e-11 (Radau) to
+#: 4.5e-8 (BDF) of the peak; with one absolute tolerance for all states 0.15 to 0.19.
+IVP_SPREAD_RTOL = 1e-6
+
+
+def mp_eig_step(model, times, digits: int = 60) -> np.ndarray:
+    """Unit-step response through the eigendecomposition in mpmath (a second, independent route)."""
+    with mp.workdps(digits):
+        a = mp.matrix(model.A.tolist())
+        values, right = mp.eig(a)
+        left = mp.inverse(right)
+        b = left * mp.matrix(model.B.tolist())
+        c = mp.matrix(model.C.tolist()) * right
+        out = []
+        for t in times:
+            total = [mp.mpf(0)] * model.C.shape[0]
+            for k in range(model.C.shape[0]):
+                total[k] = sum(
+                    c[k, i] * b[i] * mp.expm1(values[i] * t) / values[i] for i in range(len(values))
+                )
+            out.append([float(mp.re(v)) for v in total])
+    return np.array(out)
+
+
+def spread_model():
+    net = parse_text(SPREAD)
+    return net, compile_netlist(net, ["v(b)"])
+
+
+def test_tiny_output_of_a_stiff_network_is_right_or_not_ok() -> None:
+    net, model = spread_model()
+    times = np.concatenate([np.linspace(0.0, 2e-5, 401), np.linspace(2e-5, 1e-3, 101)[1:]])
+    check = times[::25]
+    ref = mp_step(model, check)
+    assert np.allclose(ref, mp_eig_step(model, check), rtol=1e-12, atol=1e-25)  # two references agree
+    result = integrators.run(model, input_signals(net, 1e-6, 1e-3), times, "exact", rtol=SPREAD_RTOL)
+    assert result.ok, result.message
+    peak = np.max(np.abs(ref))
+    assert np.max(np.abs(result.outputs[::25] - ref)) <= SPREAD_RTOL * peak
+    # settled at 1.0e-9 V (the modal evaluation alone gave 7.29e-8 V in issue 17)
+    assert abs(result.outputs[-1, 0] - ref[-1, 0]) <= 1e-6 * abs(ref[-1, 0])
+    assert result.stats["error_estimate"] <= SPREAD_RTOL
+
+
+def test_modal_error_estimate_sees_the_cancellation() -> None:
+    """The double-precision modal estimate exceeds the tolerance here, so that result is not used:
+    the eigendecomposition is redone at 40 digits (or, with that disabled, Van Loan steps)."""
+    net, model = spread_model()
+    times = np.linspace(0.0, 2e-5, 401)
+    signals = input_signals(net, 1e-6, 2e-5)
+    result = simulate.propagate_foh(model, signals, times, rtol=SPREAD_RTOL)
+    assert result.path == "modal (extended precision)" and result.verified
+    assert "modal evaluation's error estimate" in result.message
+    ref = mp_step(model, times[::40])
+    assert np.max(np.abs(result.outputs[::40] - ref)) <= SPREAD_RTOL * np.max(np.abs(ref))
+
+
+def test_stepped_fallback_when_extended_precision_is_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(simulate, "MODAL_REFINE_LIMIT", 0)
+    net, model = spread_model()
+    times = np.linspace(0.0, 2e-5, 401)
+    result = simulate.propagate_foh(model, input_signals(net, 1e-6, 2e-5), times, rtol=SPREAD_RTOL)
+    assert result.path == "augmented expm" and result.verified, result.message
+    ref = mp_step(model, times[::40])
+    assert np.max(np.abs(result.outputs[::40] - ref)) <= SPREAD_RTOL * np.max(np.abs(ref))
+
+
+def test_an_unreachable_tolerance_is_reported_not_ok() -> None:
+    net, model = spread_model()
+    times = np.linspace(0.0, 2e-5, 401)
+    result = integrators.run(model, input_signals(net, 1e-6, 2e-5), times, "exact", rtol=1e-18)
+    assert result.status == "unverified" and not result.ok
+    assert "cannot be vouched for" in result.message
+
+
+@pytest.mark.parametrize("method", ["Radau", "BDF", "LSODA"])
+def test_ivp_tolerance_follows_each_state_scale(method: str) -> None:
+    net, model = spread_model()
+    times = np.linspace(0.0, 2e-5, 201)
+    ref = mp_step(model, times[::20])
+    result = integrators.run(model, input_signals(net, 1e-6, 2e-5), times, method, rtol=1e-10)
+    assert result.ok, result.message
+    assert np.max(np.abs(result.outputs[::20] - ref)) <= IVP_SPREAD_RTOL * np.max(np.abs(ref))
+    assert result.stats["error_vs_reference"] <= IVP_SPREAD_RTOL
+
+
+def test_ivp_result_far_from_the_reference_is_unverified(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(integrators, "IVP_GLOBAL_FACTOR", 1e-6)  # any measurable error is "too far"
+    net, model = spread_model()
+    times = np.linspace(0.0, 2e-5, 201)
+    result = integrators.run(model, input_signals(net, 1e-6, 2e-5), times, "LSODA", rtol=1e-6)
+    assert result.status == "unverified"
+    assert "solve_ivp's rtol bounds only the local error" in result.message
+
+
+# --- issue 13: rtol is a bound on the rational method's error --------------------------------
+
+
+def rlc_line(sections: int, load: str) -> str:
+    """An RLC transmission-line model (1 nH, 50 mΩ, 10 pF per section) with a load at the end."""
+    lines = ["RLC line", "V1 in 0 1", "R0 in n0 0.1"]
+    for i in range(sections):
+        lines += [f"L{i} n{i} m{i} 1n", f"R{i + 1} m{i} n{i + 1} 0.05", f"C{i} n{i + 1} 0 10p"]
+    lines.append(f"I1 n{sections} 0 {load}")
+    return "\n".join(lines) + "\n"
+
+
+def micro_interval_case(sections: int = 4, points: int = 100, horizon: float = 1e-6):
+    """PWL load corners 4e-16 s before and 3e-16 s after output times (micro-intervals)."""
+    rng = np.random.default_rng(7)
+    times = np.linspace(0.0, horizon, points + 1)
+    corners, values = [], []
+    for k in range(1, points, 3):
+        corners += [float(times[k]) - 4e-16, float(times[k]) + 3e-16]
+        values += [float(rng.uniform(0, 1e-3)), float(rng.uniform(0, 1e-3))]
+    pwl = "PWL(" + " ".join(f"{t!r} {v!r}" for t, v in zip(corners, values, strict=True)) + ")"
+    net = parse_text(rlc_line(sections, pwl))
+    model = compile_netlist(net, [f"v(n{sections})", "v(n1)"])
+    return net, model, times, input_signals(net, horizon / points, horizon)
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-8])
+def test_rational_error_within_rtol_with_micro_intervals(rtol: float) -> None:
+    _net, model, times, signals = micro_interval_case(3, 50, 5e-7)
+    gaps = np.diff(refine_grid(times, signals))
+    assert np.min(gaps[gaps > 0]) < 1e-15  # the case really has micro-intervals
+    reference = simulate.propagate_foh(model, signals, times, rtol=1e-12)
+    assert reference.verified, reference.message
+    result = integrators.run(model, signals, times, "rational", rtol=rtol)
+    assert result.ok, result.message
+    assert peak_error(result.outputs, reference.outputs) <= rtol
