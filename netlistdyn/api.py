@@ -406,7 +406,7 @@ def simulate(
             initial_state(model, x0),
             force,
         )
-    if not result.ok:
+    if not result.ok and result.status != "unverified":  # unverified: numbers, with the reason
         raise SimulationError(f"{result.method} {result.status}: {result.message}", result)
     return result
 

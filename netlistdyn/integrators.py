@@ -337,9 +337,6 @@ def _rational(
     # says nothing about the full interval after it.
     checked_h, unchecked, last_error = math.nan, 0, math.inf
     stats["checks"] = 0
-    # rtol bounds the global error: each step may use its share h/T of it (errors of a
-    # non-growing model add up at most), but never less than the estimate's rounding floor.
-    horizon = float(events[-1] - events[0]) if events.size > 1 else 0.0
     for k in range(1, events.size):
         length = events[k] - events[k - 1]
         if length <= 0 or n == 0:
@@ -356,7 +353,7 @@ def _rational(
             u_here = u0 + slope * (done * length)
             damped = stepper(h, False)(x, u_here, slope)
             scale = max(scale, float(np.max(np.abs(damped))))
-            tol = max(rtol * h / horizon, RATIONAL_ROUNDING) if horizon > 0 else rtol
+            tol = rtol
             trusted = not growing and h == checked_h and unchecked < 16 and last_error < tol * 0.1
             if trusted:
                 error = last_error
@@ -394,9 +391,6 @@ def _rational(
         states_out.append(xs)
     return _finish(times, y, "rational", f"rtol={rtol:g}", start, stats)
 
-
-#: Below this, the difference of the two Padé steps is rounding (relative to the state): accepted.
-RATIONAL_ROUNDING = 1e-14
 
 #: Up to this many states the balancing is LAPACK's (dense); above, one sparse sweep.
 DENSE_BALANCE_LIMIT = 3000

@@ -568,6 +568,9 @@ def _stepped_states(
     return states[np.searchsorted(grid, times)]
 
 
+#: Above this many grid points the stepped path checks itself on a subgrid of about this size.
+STEPPED_CHECK_LIMIT = 2000
+
 #: Up to this many states a modal evaluation whose estimate fails is redone from an
 #: eigendecomposition computed with mpmath (about 0.1 s at 5 states, 1 s at 12).
 MODAL_REFINE_LIMIT = 12
@@ -595,6 +598,12 @@ def _stepped_error(
     """
     if prop.n == 0 or grid.size < 2:
         return 0.0
+    if grid.size > STEPPED_CHECK_LIMIT:  # every step its own exponential: check a subgrid
+        stride = -(-grid.size // STEPPED_CHECK_LIMIT)
+        grid = np.union1d(grid[::stride], signals.breakpoints[signals.breakpoints <= grid[-1]])
+        grid = np.union1d(grid, [times[-1]])
+        times = grid
+        xs = _stepped_states(prop, signals, times, x0, None, grid)
     fine = np.union1d(grid, (grid[:-1] + grid[1:]) / 2)
     with np.errstate(over="ignore", invalid="ignore"):
         two = _stepped_states(prop, signals, times, x0, None, fine)
