@@ -4,7 +4,8 @@ For each network (tests/random_networks.py) the model is compiled and every
 eigenvalue, with its reported error bounds, is compared with the roots of
 det(G + sC) expanded in exact rational arithmetic (tests/exact_pencil.py).
 Counts: networks compiled and refused, eigenvalues outside their own
-bounds, state counts different from the exact order, wrong verdicts.
+bounds, state counts different from the exact order, wrong verdicts, and
+crashes of the analysis (any exception).
 
     python benchmarks/spread_campaign.py --count 2000 --spread both --seed 1
 
@@ -34,7 +35,18 @@ def campaign(count: int, spread: bool, seed: int) -> dict[str, int]:
     """Run ``count`` networks; print failures; return the counts."""
     rng = np.random.default_rng(seed)
     counts = dict.fromkeys(
-        ("networks", "compiled", "refused", "singular", "eigenvalues", "off_bar", "order", "verdict"), 0
+        (
+            "networks",
+            "compiled",
+            "refused",
+            "singular",
+            "eigenvalues",
+            "off_bar",
+            "order",
+            "verdict",
+            "crash",
+        ),
+        0,
     )
     for _ in range(count):
         text = random_network(rng, spread)
@@ -51,7 +63,12 @@ def campaign(count: int, spread: bool, seed: int) -> dict[str, int]:
             counts["singular"] += 1
             continue
         counts["compiled"] += 1
-        eig = analyze_eigenvalues(model.A_sparse, "all", pencil=model.pencil)
+        try:
+            eig = analyze_eigenvalues(model.A_sparse, "all", pencil=model.pencil)
+        except Exception as exc:  # a crash is a finding: count it, show the network, go on
+            counts["crash"] += 1
+            print(f"CRASH {type(exc).__name__}: {exc}\n{text}", flush=True)
+            continue
         counts["eigenvalues"] += len(eig.modes)
         if len(eig.modes) != len(exact):
             counts["order"] += 1

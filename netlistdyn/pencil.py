@@ -122,7 +122,13 @@ def _pair(
         if matrix.shape[0] > DENSE_PENCIL:
             return None
         # λ is an eigenvalue to working precision: the singular vectors of the last singular value.
-        u, _, vh = np.linalg.svd(matrix.toarray())
+        dense = matrix.toarray()
+        if not np.all(np.isfinite(dense)):
+            return None
+        try:
+            u, _, vh = np.linalg.svd(dense)
+        except np.linalg.LinAlgError:
+            return None
         return vh[-1].conj(), u[:, -1]
     with np.errstate(all="ignore"):
         w = _unit(factor.solve(start[0]))
@@ -470,14 +476,14 @@ def check_spectrum(
     n = len(values)
     bounds = np.zeros(n) if bounds is None else np.asarray(bounds, dtype=float)
     exact = (prep.G.nnz + prep.E.nnz) * max(n, 1) <= EXACT_RESIDUAL_BUDGET
-    from_a = [check_eigenvalue(prep, v, exact) for v in values]
+    from_a = [_checked_or_none(prep, v, exact) for v in values]
     jumped = [
         r is not None and abs(r.value - values[k]) > 2 * max(r.abs_error, _finite(bounds[k]))
         for k, r in enumerate(from_a)
     ]
     from_qz: list[CheckedEigenvalue] = []
     if prep.G.shape[0] <= QZ_LIMIT:
-        from_qz = [r for r in (check_eigenvalue(prep, v, exact) for v in _qz(prep)) if r is not None]
+        from_qz = [r for r in (_checked_or_none(prep, v, exact) for v in _qz(prep)) if r is not None]
     groups = _group(from_a, from_qz)
     plan = []
     for ks, qs in groups:
@@ -504,6 +510,21 @@ def check_spectrum(
     spare = [k for k in range(n) if k not in done]
     slots.extend((k, None) for k in spare[: n - len(slots)])
     return slots
+
+
+def _checked_or_none(prep: _Prepared, value: complex, exact: bool) -> CheckedEigenvalue | None:
+    """:func:`check_eigenvalue`, or None when the linear algebra fails (the caller keeps A's estimate).
+
+    At extreme values G + λE can overflow or defeat LAPACK's SVD; the check
+    is then not available for that eigenvalue, which is never an error.
+    """
+    if not np.isfinite(value):
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            return check_eigenvalue(prep, value, exact)
+    except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError, RuntimeError):
+        return None
 
 
 def _finite(value: float) -> float:
