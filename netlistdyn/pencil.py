@@ -485,17 +485,23 @@ def check_spectrum(
     if prep.G.shape[0] <= QZ_LIMIT:
         from_qz = [r for r in (_checked_or_none(prep, v, exact) for v in _qz(prep)) if r is not None]
     groups = _group(from_a, from_qz)
+    # An A start counts towards a root's multiplicity only when it did not jump there and A's own
+    # bound makes its value meaningful (a bound above |λ| says A did not resolve it).
+    reliable = [
+        r is not None and not jumped[k] and bool(np.isfinite(bounds[k])) and bounds[k] < abs(values[k])
+        for k, r in enumerate(from_a)
+    ]
     plan = []
     for ks, qs in groups:
-        kept = [k for k in ks if not jumped[k]]
+        kept = [k for k in ks if reliable[k]]
         # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
-        # otherwise A's starts that did not jump there.
+        # otherwise A's reliable starts that reached it.
         count = len(qs) if qs else max(len(kept), 1)
-        represented = (kept + [k for k in ks if jumped[k]])[:count]
-        plan.append((ks, qs, count, represented, max(len(kept), 1)))
+        represented = (kept + [k for k in ks if not reliable[k]])[:count]
+        plan.append((ks, qs, count, represented, len(kept) + len(qs)))
     while sum(p[2] for p in plan) > n:
-        # Over-counted: first a group QZ counted above A's evidence, then one A never reached.
-        j = max(range(len(plan)), key=lambda i: (plan[i][2] > plan[i][4], not plan[i][0], plan[i][2]))
+        # Over-counted: first a group with no reliable evidence, then one counted above its evidence.
+        j = max(range(len(plan)), key=lambda i: (plan[i][4] == 0, plan[i][2] > plan[i][4], plan[i][2]))
         ks, qs, count, represented, evidence = plan[j]
         plan[j] = (ks, qs, count - 1, represented[: count - 1], evidence)
     slots: list[tuple[int, CheckedEigenvalue | None]] = []

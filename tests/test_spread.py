@@ -73,6 +73,29 @@ C2 b 0 1e-10
 """
 
 
+SINGULAR_G = """A's small-eigenvalue path returns a root twice; QZ on the circuit equations finds the other
+Vin n1 0 1
+R0 0 n2 4614.8578698527281
+C1 n3 0 0.095603555334909843
+C2 n1 0 3.6862755945473266e-11
+L3 n1 n3 102.93034989348051
+C4 n2 n1 3.7804853070408274e-15
+L5 0 n3 5.7948552768145731e-05
+Rgn1 n1 0 90.221603668649848
+Rgn2 n2 0 43326.16474584872
+Rgn3 n3 0 5.4035717776712152e-13
+G1 n1 n3 n1 n2 -778.35835074871659
+.end
+"""
+
+
+def test_duplicated_root_from_a_is_not_counted_twice():
+    """Exact roots {0, −1.94e13, −6.34e10, −9.32e-9}: A gives −6.34e10 twice (one copy with a bound of
+    1e28), and the root −9.32e-9 must come from the circuit equations, not be dropped."""
+    netlist, _, eig = _analyse(SINGULAR_G, ["v(n1)"])
+    _assert_within_bars(eig.modes, exact_natural_frequencies(netlist))
+
+
 def test_no_dropped_state():
     """True order 2, eigenvalues {0, −40}: a VCCS driven by its own terminals is a conductance."""
     netlist, model, eig = _analyse(DROPPED_STATE)
@@ -138,7 +161,10 @@ def _check_network(text: str) -> None:
 
 
 @settings(
-    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow]
+    max_examples=15,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
 )
 @given(networks(spread=False))
 def test_realistic_values_within_bars(text):
@@ -147,7 +173,10 @@ def test_realistic_values_within_bars(text):
 
 
 @settings(
-    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow]
+    max_examples=15,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
 )
 @given(networks(spread=True))
 def test_wide_spreads_within_bars(text):
