@@ -414,7 +414,7 @@ def propagate_foh(
     times = np.asarray(times, dtype=float)
     if model.nstates == 0:  # no dynamics: y = D u (+ D1 u') at the requested times, nothing to step
         xs = np.zeros((times.size, 0))
-        return _outputs_at(model, signals, times, xs), xs
+        return FohResult(_outputs_at(model, signals, times, xs), xs, 0.0, "no states", True)
     prop = FohPropagator(model.A, model.B)
     note = ""
     if prop.modal:
