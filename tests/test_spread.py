@@ -160,24 +160,23 @@ def _check_network(text: str) -> None:
         assert eig.verdict == expected, (eig.verdict, expected, exact)
 
 
-@settings(
+#: Fixed examples (deterministic in CI); benchmarks/spread_campaign.py explores further.
+NETWORK_SETTINGS = settings(
     max_examples=15,
     deadline=None,
     derandomize=True,
     suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
 )
+
+
+@NETWORK_SETTINGS
 @given(networks(spread=False))
 def test_realistic_values_within_bars(text):
     """E12 values over pF…mF, pH…H, mΩ…GΩ: each eigenvalue within its bar, the right verdict."""
     _check_network(text)
 
 
-@settings(
-    max_examples=15,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
-)
+@NETWORK_SETTINGS
 @given(networks(spread=True))
 def test_wide_spreads_within_bars(text):
     """Values log-uniform over 1e-15…1e6: each eigenvalue within its bar, the right verdict."""
