@@ -927,6 +927,13 @@ def _parse_source(
             j += 1
         return out, j
 
+    def one_value(at: int, label: str, what: str) -> tuple[float, int]:
+        """The number after keyword ``fields[at]`` and the index past it; refused when missing."""
+        got, after = take_values(at + 1, 1)
+        if not got:
+            raise NetlistError(f"{name}: {label} needs {what}", loc)
+        return values.number(got[0], loc, f"{name} {label}"), after
+
     while i < n:
         token = fields[i]
         word = token.lower()
@@ -953,25 +960,13 @@ def _parse_source(
             seen_any = True
             continue
         if word == "dc":
-            got, j = take_values(i + 1, 1)
-            if not got:
-                raise NetlistError(f"{name}: DC needs a value", loc)
-            dc_keyword = values.number(got[0], loc, f"{name} DC")
-            i = j
+            dc_keyword, i = one_value(i, "DC", "a value")
         elif word in ("ac", "distof1", "distof2"):
             _, i = take_values(i + 1, 2)  # magnitude and phase: small-signal only
         elif word == "portnum":
-            got, j = take_values(i + 1, 1)
-            if not got:
-                raise NetlistError(f"{name}: portnum needs a number", loc)
-            portnum = values.number(got[0], loc, f"{name} portnum")
-            i = j
+            portnum, i = one_value(i, "portnum", "a number")
         elif word == "z0":
-            got, j = take_values(i + 1, 1)
-            if not got:
-                raise NetlistError(f"{name}: z0 needs a value", loc)
-            z0 = values.number(got[0], loc, f"{name} z0")
-            i = j
+            z0, i = one_value(i, "z0", "a value")
         elif word in SOURCE_FUNCTIONS:
             if waveform is not None:
                 raise NetlistError(f"{name}: a second waveform {token.upper()}", loc)
