@@ -283,7 +283,11 @@ def _pbh(
     r, c = r[:n], c[:n]
     shifted = (A - lam * np.eye(n)) if lam.imag else (A - lam.real * np.eye(n))
     U, s, Vh = sla.svd(shifted * r[:, None] * c[None, :])
-    top = s[0] if s[0] > 0 else 1.0
+    # Null is relative to the size of the entries (the equilibrated |A| + |λ|I), not to the largest
+    # singular value of A − λI: when A is λI up to rounding (equal time constants in decoupled
+    # parts), every singular value is rounding and all of them span the eigenspace.
+    scale = float(np.linalg.norm(magnitude[:n, :n] * r[:, None] * c[None, :], 2))
+    top = max(s[0], scale) if max(s[0], scale) > 0 else 1.0
     k = int(np.clip(np.sum(s <= NULL_RTOL * top), 1, max(1, multiplicity)))
     gap = s[n - k - 1] / top if n - k - 1 >= 0 else 1.0
     tol = max(tol, 100 * n * EPS / max(gap, 1e-300))
@@ -855,7 +859,10 @@ def _controller_transform(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     """T = [q; qA; …; qAⁿ⁻¹] with q the last row of [b Ab … Aⁿ⁻¹b]⁻¹; None if (A, b) is uncontrollable."""
     if deflate(A, b[:, None], np.zeros((0, A.shape[0])), controllable=True, observable=False).uncontrollable:
         return None
-    rows = [np.linalg.inv(_krylov(A, b[:, None]))[-1]]
+    try:
+        rows = [np.linalg.inv(_krylov(A, b[:, None]))[-1]]
+    except np.linalg.LinAlgError:
+        return None  # the Krylov matrix is exactly singular: (A, b) is not controllable
     for _ in range(A.shape[0] - 1):
         rows.append(rows[-1] @ A)
     return np.array(rows)

@@ -191,6 +191,32 @@ def test_canonical_form_refused_when_uncontrollable() -> None:
     assert doc["observer"]["signal"] == "v(a)"  # v(in) = Vin sees no state; v(a) sees both
 
 
+@pytest.mark.parametrize(("r2", "c2"), [("2k", "0.5u"), ("4k", "0.25u"), ("1k", "1u")])
+def test_equal_time_constants_in_decoupled_parts_are_not_controllable_from_one_input(
+    r2: str, c2: str
+) -> None:
+    """Two RCs fed by one source with R1C1 = R2C2 exactly (the halved/quartered values are exact in
+    binary): A = −1000·I, a double eigenvalue with two eigenvectors, which one input cannot reach
+    (rank [A − λI, B] = rank B = 1). The PBH test must say so, and the controller form must be
+    refused with a reason rather than fail on the singular Krylov matrix (it raised LinAlgError)."""
+    model = compile_string(f"twin RCs\nVin in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 in b {r2}\nC2 b 0 {c2}\n.end\n")
+    found = control.structure(model)
+    assert found.ranks[0] == 1  # the controllable subspace is one-dimensional
+    assert len(found.uncontrollable) == 1
+    assert abs(found.uncontrollable[0] + 1000.0) <= 1e-9 * 1000.0
+    with pytest.raises(UsageError, match="no input controls every state"):
+        control.controller_form(model)
+    runner = CliRunner()
+    with runner.isolated_filesystem():
+        Path("twin.cir").write_text(
+            f"twin RCs\nVin in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 in b {r2}\nC2 b 0 {c2}\n.end\n"
+        )
+        result = runner.invoke(main, ["analyze", "twin.cir", "--canonical", "--control", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert "no input controls every state" in doc["canonical"]["controller"]["unavailable"]
+
+
 def test_cart_angle_transfer_functions_match_seed_002() -> None:
     """The siblings of the cart's transfer function: θ1/F = (−1.3333s⁴ + 43.6s²)/den and
     θ2/F = 43.6s²/den, den = s⁶ − 98.1s⁴ + 1176.2s² (printed to 4-5 digits: rtol 1e-4; the
