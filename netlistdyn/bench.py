@@ -55,6 +55,10 @@ LADDERS: dict[str, tuple[float, ...]] = {
 }
 
 
+#: Most grid intervals ``--points`` accepts (every method and ngspice is sampled on the grid).
+MAX_POINTS = 1_000_000
+
+
 @dataclass(frozen=True, slots=True)
 class BenchRow:
     """One configuration's result (median over repeats)."""

@@ -613,15 +613,15 @@ def validate(
             click.echo(f"netlistdyn: {missing}", err=True)
             return EXIT_NO_NGSPICE
         from . import progress
-        from .api import validation_pipeline
+        from .api import NetlistText, validation_pipeline
         from .display import signal_units
         from .report import to_json, validation_dict, validation_text
 
-        if netlist == DASH:
-            raise UsageError("validate runs ngspice on the netlist file: give a file, not '-'")
+        # "-": the text of standard input (ngspice reads it from a temporary copy).
+        source = NetlistText(STDIN_NAME, stdin_text()) if netlist == DASH else netlist
         with progress.bar("validate (ngspice and model)", None, quiet, unit="run"):
             result = validation_pipeline(
-                netlist,
+                source,
                 parse_param_overrides(params),
                 list(outputs) or None,
                 parse_param_overrides(model_params),
@@ -641,10 +641,9 @@ def validate(
             click.echo(f"netlistdyn: {report.spice.message} (raise it with --timeout)", err=True)
             return EXIT_TIMEOUT
         if plot and report.spice.ok:
-            from .parser import parse_file
             from .plots import validation_plot
 
-            validation_plot(report, plot, signal_units(parse_file(netlist), result.outputs), result.title)
+            validation_plot(report, plot, signal_units(parse_netlist(netlist), result.outputs), result.title)
         if fmt == "json":
             emit(to_json(validation_dict(report, result.title, result.reference_accuracy)), out)
         else:
@@ -877,12 +876,14 @@ def bench(
     def body() -> int:
         from . import progress
         from .analysis import analyze_eigenvalues
-        from .bench import run_bench
+        from .bench import MAX_POINTS, run_bench
         from .probes import parse_probe
         from .report import bench_dict, bench_text, to_json
         from .simulate import choose_horizon
         from .validate import spice_settings_for
 
+        if points > MAX_POINTS:
+            raise UsageError(f"--points {points}: more than {MAX_POINTS:,} grid intervals")
         check_outputs(plot=plot, out=out)
         parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         if not parsed.sources:

@@ -93,6 +93,7 @@ def simulate_large(
     from .display import signal_units
     from .simulate import Horizon, source_waveform
     from .transient import DEFAULT_ORDER, run_transient
+    from .waveforms import check_breakpoints
 
     for value, flag in ((tstop, "--tstop"), (tstep, "--tstep")):
         if value is not None and not value > 0:
@@ -109,6 +110,9 @@ def simulate_large(
     system = assemble(netlist, outputs)
     times = np.linspace(0.0, horizon.tstop, count + 1)
     waves = [source_waveform(e).resolved(horizon.tstep, horizon.tstop) for e in netlist.sources]
+    check_breakpoints(
+        [(e.name, e.loc, w) for e, w in zip(netlist.sources, waves, strict=True)], horizon.tstop
+    )
     uic = bool(getattr(netlist.tran, "uic", False)) if netlist.tran is not None else False
     x0 = _initial_unknowns(system, ics)
     started = time.process_time()

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from .analysis import EigenAnalysis
 from .model import StateSpaceModel
 from .netlist import Element, Netlist
-from .waveforms import Dc, Exp, Sin, Waveform
+from .waveforms import Dc, Exp, Sin, Waveform, check_breakpoints
 
 #: Linear interpolation error allowed on smooth inputs, relative to their amplitude.
 SMOOTH_INPUT_RTOL = 1e-9
@@ -160,6 +160,7 @@ def input_signals(netlist: Netlist, tstep: float, tstop: float) -> InputSignals:
         Output step and horizon (s); SPICE uses them as waveform defaults.
     """
     waves = tuple(source_waveform(e).resolved(tstep, tstop) for e in netlist.sources)
+    check_breakpoints([(e.name, e.loc, w) for e, w in zip(netlist.sources, waves, strict=True)], tstop)
     points = sorted({0.0, *(p for w in waves for p in w.breakpoints(tstop)), tstop})
     smooth = math.inf
     for w in waves:

@@ -255,6 +255,7 @@ def compare(
         Seconds allowed to ngspice.
     """
     notes: list[str] = []
+    signals = input_signals(netlist, horizon.tstep, horizon.tstop)  # refuses too many breakpoints first
     run = run_transient(netlist, probes, settings, timeout)
     for reltol in VALIDATION_RELTOLS:
         if run.ok or reltol <= settings.reltol or run.status in ("timeout", "unusable"):
@@ -276,7 +277,6 @@ def compare(
             (*notes, f"ngspice failed: {run.message}"),
         )
     start = time.perf_counter()
-    signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     notes.extend(_impulse_notes(model, signals))
     foh = propagate_foh(model, signals, run.time)
     ours = foh.outputs

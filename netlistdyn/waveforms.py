@@ -9,10 +9,19 @@ resolved with :meth:`Waveform.resolved` once ``tstep``/``tstop`` are known.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from .errors import NetlistError, SourceLocation
+
+#: Most waveform breakpoints (corners of PULSE and PWL sources, summed over the sources) that a
+#: transient accepts: each one is a step boundary of every method. Raise it with the environment
+#: variable ``NETLISTDYN_MAX_BREAKPOINTS``.
+MAX_BREAKPOINTS = 1_000_000
+MAX_BREAKPOINTS_VARIABLE = "NETLISTDYN_MAX_BREAKPOINTS"
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,12 +109,19 @@ class Pulse:
         """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
         return self(t)
 
+    def breakpoint_count(self, tstop: float) -> int:
+        """How many corners :meth:`breakpoints` gives in [0, tstop], at most (counted, not listed)."""
+        *_, per = self._times()
+        if self.td > tstop:
+            return 0
+        return 4 * (math.floor((tstop - self.td) / per) + 1)
+
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
-        """Corners of the trapezoid in [0, tstop] (s)."""
+        """Corners of the trapezoid in [0, tstop] (s); see :func:`check_breakpoints` for the bound."""
         tr, tf, pw, per = self._times()
         points: list[float] = []
         start = self.td
-        while start <= tstop and len(points) < 4_000_000:
+        while start <= tstop:
             for offset in (0.0, tr, tr + pw, tr + pw + tf):
                 if start + offset <= tstop:
                     points.append(start + offset)
@@ -309,3 +325,48 @@ class Exp:
 
 
 Waveform = Dc | Pulse | Sin | Pwl | Exp
+
+
+def breakpoint_limit() -> int:
+    """The breakpoint limit: ``$NETLISTDYN_MAX_BREAKPOINTS`` when set to a positive integer."""
+    import os
+
+    text = os.environ.get(MAX_BREAKPOINTS_VARIABLE, "").strip()
+    if text.isdigit() and int(text) > 0:
+        return int(text)
+    return MAX_BREAKPOINTS
+
+
+def check_breakpoints(sources: Sequence[tuple[str, SourceLocation, Waveform]], tstop: float) -> None:
+    """Refuse a transient whose resolved waveforms have more breakpoints than the limit.
+
+    Counted before any is listed, so a PULSE with a 1 ps period over 1 s is refused at once.
+
+    Parameters
+    ----------
+    sources : sequence of (name, location, waveform)
+        Each source's name, where it was written and its resolved waveform.
+    tstop : float
+        Horizon (s).
+
+    Raises
+    ------
+    NetlistError
+        At the source with the most breakpoints, naming the count and the limit.
+    """
+    limit = breakpoint_limit()
+    counts = [
+        (w.breakpoint_count(tstop) if isinstance(w, Pulse) else len(w.breakpoints(tstop)), name, loc, w)
+        for name, loc, w in sources
+    ]
+    total = sum(c[0] for c in counts)
+    if total <= limit:
+        return
+    count, name, loc, wave = max(counts, key=lambda c: c[0])
+    what = f"a PULSE period of {wave.per:g} s" if isinstance(wave, Pulse) else "its corners"
+    raise NetlistError(
+        f"{name}: {what} gives {count} breakpoints over the {tstop:g} s horizon"
+        + (f" ({total} with the other sources)" if total > count else "")
+        + f", more than {limit}; shorten the horizon or set {MAX_BREAKPOINTS_VARIABLE}",
+        loc,
+    )

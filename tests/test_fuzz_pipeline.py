@@ -129,16 +129,28 @@ def netlists(draw: st.DrawFn) -> str:
     return "\n".join(header + lines) + "\n"
 
 
-@settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck))
-@given(netlists())
-def test_parse_compile_eigenvalues(text: str) -> None:
+def check_netlist(text: str) -> int | None:
+    """Compile ``text`` and check its model; the state count, or None when it is refused cleanly.
+
+    Raises
+    ------
+    AssertionError
+        When the model holds a non-finite entry or its eigenvalues are not all finite.
+    """
     try:
         model = compile_netlist(parse_text(text))
     except (NetlistError, UsageError):
-        return
+        return None
     for matrix in (model.A_sparse, model.B_sparse, model.C_sparse, model.D_sparse, model.D1_sparse):
         assert np.all(np.isfinite(matrix.data))
     analysis = analyze_eigenvalues(model.A_sparse)
     values = np.array([mode.value for mode in analysis.modes], dtype=complex)
     assert values.size == model.nstates
     assert np.all(np.isfinite(values))
+    return model.nstates
+
+
+@settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck))
+@given(netlists())
+def test_parse_compile_eigenvalues(text: str) -> None:
+    check_netlist(text)

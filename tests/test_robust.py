@@ -136,6 +136,18 @@ def test_stdin_error_names_stdin() -> None:
     assert err.startswith("<stdin>:3: R1")
 
 
+@pytest.mark.skipif(ngspice_missing() is not None, reason="ngspice is not installed")
+def test_validate_reads_stdin() -> None:
+    """``validate -`` runs ngspice on the text of standard input (and its original-file check)."""
+    text = "RC low-pass\nV1 in 0 PULSE(0 1 0 1u 1u 1m 2m)\nR1 in a 1k\nC1 a 0 100n\n.tran 10u 2m\n"
+    code, out, err = run(["validate", "-", "--no-pz"], text)
+    assert code == 0, err
+    assert "PASS" in out and "original file" in out
+    code, _, err = run(["validate", "-"], "title\nV1 a 0 1\nR1 a 0 0\n")
+    assert code == 1
+    assert err.startswith("<stdin>:3: R1")
+
+
 def test_outputs_are_checked_before_any_work(tmp_path: Path) -> None:
     save = tmp_path / "m.npz"
     code, _, err = run(["analyze", CIRCUIT1, "--save", str(save), "-o", str(tmp_path / "nodir" / "out.txt")])

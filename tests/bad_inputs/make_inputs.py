@@ -40,51 +40,29 @@ TITLE = "bad input\n"
 CASES: list[dict[str, Any]] = []
 
 
+def _add(file: str, args: list[str], code: int, where: str, fragment: str, **extra: Any) -> None:
+    """One case: the input ``file`` (given by ``text`` or ``bytes`` in ``extra``), its command line
+    and the exit status, stderr prefix and message fragment it must produce; a None extra is left out."""
+    case = {"file": file, "args": args, "exit": code, "where": where, "fragment": fragment}
+    CASES.append({**case, **{k: v for k, v in extra.items() if v is not None}})
+
+
 def netlist(
     name: str, body: str, line: int, fragment: str, owner: str | None = None, args: list[str] | None = None
 ) -> None:
     """A netlist whose line ``line`` (1 = title) is wrong; analyze (or ``args``) exits 1."""
-    case: dict[str, Any] = {
-        "file": f"{name}.cir",
-        "text": TITLE + body,
-        "args": args or ["analyze", "{file}"],
-        "exit": 1,
-        "where": f"{{file}}:{line}",
-        "fragment": fragment,
-    }
-    if owner:
-        case["owner"] = owner
-    CASES.append(case)
+    args = args or ["analyze", "{file}"]
+    _add(f"{name}.cir", args, 1, f"{{file}}:{line}", fragment, text=TITLE + body, owner=owner)
 
 
 def option(name: str, args: list[str], fragment: str, where: str, owner: str | None = None) -> None:
     """A good netlist with a bad command line; exit 2 naming the option ``where``."""
-    case: dict[str, Any] = {
-        "file": f"opt_{name}.cir",
-        "text": GOOD,
-        "args": args,
-        "exit": 2,
-        "where": where,
-        "fragment": fragment,
-    }
-    if owner:
-        case["owner"] = owner
-    CASES.append(case)
+    _add(f"opt_{name}.cir", args, 2, where, fragment, text=GOOD, owner=owner)
 
 
 def raw(name: str, data: bytes, args: list[str], code: int, where: str, fragment: str, **extra: Any) -> None:
     """An input given as bytes (binary files, saved models)."""
-    CASES.append(
-        {
-            "file": name,
-            "bytes": data,
-            "args": args,
-            "exit": code,
-            "where": where,
-            "fragment": fragment,
-            **extra,
-        }
-    )
+    _add(name, args, code, where, fragment, bytes=data, **extra)
 
 
 # --- netlists: syntax and values -----------------------------------------------------------
@@ -199,9 +177,16 @@ netlist(
     "pulse_1ps_period",
     "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n",
     2,
-    "V1",
-    owner="sim",
+    "breakpoints",
     args=["simulate", "{file}"],
+)
+CASES[-1]["isolate"] = True
+netlist(
+    "pulse_1ps_period_validate",
+    "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n",
+    2,
+    "breakpoints",
+    args=["validate", "{file}"],
 )
 CASES[-1]["isolate"] = True
 
@@ -262,6 +247,7 @@ option("validate_tstop_inf", ["validate", F, "--tstop", "inf"], "not a", "--tsto
 option("validate_timeout_zero", ["validate", F, "--timeout", "0"], "positive", "--timeout")
 option("validate_rtol_nan", ["validate", F, "--rtol", "nan"], "not", "--rtol")
 option("bench_points_zero", ["bench", F, "--points", "0"], "positive", "--points")
+option("bench_points_huge", ["bench", F, "--points", "1e9"], "more than 1,000,000", "--points")
 option("bench_points_5000_digits", ["bench", F, "--points", BIG], "--points", "--points")
 option("bench_repeats_zero", ["bench", F, "--repeats", "0"], "--repeats", "--repeats")
 option("bench_reference_rtol_inf", ["bench", F, "--reference-rtol", "inf"], "not a", "--reference-rtol")
