@@ -36,7 +36,7 @@ from .expressions import Expression, ExpressionError, NonlinearError, evaluate, 
 from .mechanics import KEYWORDS, build_mechanical, resolve_rods
 from .netlist import GROUND, Diagnostic, Element, InitialCondition, Kind, Netlist, StepSpec, TranSpec
 from .values import read_number
-from .waveforms import Exp, Pulse, Pwl, Sin, Waveform
+from .waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
 
 #: Default limit on the number of elements after subcircuit expansion; raise it
 #: with ``parse_text/parse_file(..., max_elements=N)`` or the environment
@@ -103,7 +103,7 @@ OTHER_UNSUPPORTED = {
     "p": "coupled transmission line",
 }
 SOURCE_FUNCTIONS = ("pulse", "sin", "pwl", "exp", "sffm", "am", "trnoise", "trrandom")
-_UNSUPPORTED_WAVEFORMS = ("sffm", "am", "trnoise", "trrandom")
+_UNSUPPORTED_WAVEFORMS = ("sffm", "am")
 
 # --------------------------------------------------------------------------------------------
 # Reading files
@@ -710,7 +710,7 @@ def _split_keywords(
             key = fields[i].lower()
             if key in keywords:
                 raise NetlistError(f"{name}: {fields[i]}= given twice", loc)
-            keywords[key] = fields[i + 2]
+            keywords[key] = _braced_if_expression(fields[i + 2])
             i += 3
             continue
         if fields[i] == "=":
@@ -718,6 +718,15 @@ def _split_keywords(
         positional.append(fields[i])
         i += 1
     return positional, keywords
+
+
+def _braced_if_expression(token: str) -> str:
+    """A ``key=value`` value as ngspice's numparam reads it: ``R=VAL1+VAL2`` (no blanks) is the
+    expression ``{VAL1+VAL2}`` (measured: 5 with VAL1=2, VAL2=3), while a positional ``VAL1*VAL2``
+    stays an error, as in ngspice."""
+    if _is_expr(token) or read_number(token) is not None or not re.search(r"[-+*/^]", token[1:]):
+        return token
+    return "{" + token + "}"
 
 
 _PASSIVE = {
@@ -960,7 +969,13 @@ def _parse_source(
             seen_any = True
             continue
         if word == "dc":
-            dc_keyword, i = one_value(i, "DC", "a value")
+            if take_values(i + 1, 1)[0]:
+                dc_keyword, i = one_value(i, "DC", "a value")
+            else:  # ngspice 39 reads a DC keyword without a value as DC 0 (measured)
+                dc_keyword, i = 0.0, i + 1
+                ctx.warnings.append(
+                    Diagnostic(loc, f"{name}: DC without a value is DC 0, as ngspice reads it")
+                )
         elif word in ("ac", "distof1", "distof2"):
             _, i = take_values(i + 1, 2)  # magnitude and phase: small-signal only
         elif word == "portnum":
@@ -1061,6 +1076,9 @@ def _make_waveform(
         return Exp(args[0], args[1], a[2] or 0.0, a[3], a[4], a[5])
     if kind == "pwl":
         return _make_pwl(args, keywords, loc, ctx, name)
+    if kind in ("trnoise", "trrandom"):
+        need(1, 9)  # TRNOISE(NA NT NALPHA NAMP RTSAM RTSCAPT RTSEMT), TRRANDOM(TYPE TS TD P1 P2)
+        return Random(kind, name, loc)
     raise NetlistError(f"{name}: {kind.upper()} sources are not supported", loc)
 
 
@@ -1120,7 +1138,51 @@ def _make_pwl(
     return Pwl(tuple(times), tuple(levels))
 
 
-_NONLINEAR_KEYWORDS = ("poly", "table", "laplace", "freq", "tablea", "chebyshev")
+_NONLINEAR_KEYWORDS = ("table", "laplace", "freq", "tablea", "chebyshev")
+
+
+def _poly_expression(fields: list[str], letter: str, values: _Values, loc: SourceLocation) -> str:
+    """The SPICE2 polynomial ``POLY(n) controls p0 p1 ...`` of an E/G/F/H line as an expression.
+
+    The controls are n node pairs (E, G) or n voltage sources (F, H); the coefficients follow
+    SPICE's order: p0, the n first-order terms, then every product of two controls
+    (x1², x1·x2, ..., x2², ...), of three, and so on. A single coefficient is the constant p0, as
+    ngspice 39 reads it (measured: ``POLY(1) a 0 2`` gives 2 V; SPICE2 read it as the gain p1).
+    A first-order polynomial is compiled as controlled sources (its constant p0 as a model input);
+    a higher one is a nonlinear expression.
+    """
+    name = fields[0]
+    if len(fields) < 5:
+        raise NetlistError(f"{name}: POLY needs a dimension, controls and coefficients", loc)
+    dims = values.number(fields[4], loc, f"{name} POLY")
+    if dims != int(dims) or not 1 <= dims <= 20:
+        raise NetlistError(f"{name}: POLY({fields[4]}): the dimension must be a whole number 1..20", loc)
+    n = int(dims)
+    per = 2 if letter in "eg" else 1
+    controls = fields[5 : 5 + per * n]
+    coefficients = fields[5 + per * n :]
+    if len(controls) < per * n or not coefficients:
+        raise NetlistError(
+            f"{name}: POLY({n}) needs {per * n} control {'nodes' if per == 2 else 'sources'} "
+            "and at least one coefficient",
+            loc,
+        )
+    if letter in "eg":
+        xs = [f"v({_node(controls[2 * k])},{_node(controls[2 * k + 1])})" for k in range(n)]
+    else:
+        xs = [f"i({controls[k]})" for k in range(n)]
+    coeffs = [values.number(c, loc, f"{name} POLY coefficient") for c in coefficients]
+    terms: list[str] = []
+    order, index = 0, 0
+    while index < len(coeffs):
+        for combo in itertools.combinations_with_replacement(range(n), order):
+            if index == len(coeffs):
+                break
+            if coeffs[index] != 0:
+                terms.append("*".join([f"({coeffs[index]!r})", *(xs[k] for k in combo)]))
+            index += 1
+        order += 1
+    return " + ".join(terms) or "0"
 
 
 def _expression_after(line: Line, keys: tuple[str, ...]) -> tuple[str, str] | None:
@@ -1270,6 +1332,11 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
             raise NetlistError(f"{name}: expected V={{expression}} or I={{expression}}", loc)
         mode, expr = found
         return _build_behavioural(line, "b", mode, expr, ctx)
+    if letter in "efgh":
+        fields = _fields(line)
+        if len(fields) > 3 and fields[3].lower() == "poly":
+            mode = "v" if letter in "eh" else "i"
+            return _build_behavioural(line, letter, mode, _poly_expression(fields, letter, values, loc), ctx)
     if letter in "eg":
         fields = _fields(line)
         if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
@@ -1930,6 +1997,12 @@ def parse_text(
                 warnings.append(Diagnostic(line.loc, f"{word} ignored (it does not affect the model)"))
         elif word in IGNORED_DIRECTIVES:
             warnings.append(Diagnostic(line.loc, f"{word} ignored (it does not affect the model)"))
+        elif word == ".global_param":
+            # Xyce's global parameters: ngspice 39 skips the line, so its names stay undefined
+            # (measured: a value {bar} after ".global_param bar=1" is "Undefined parameter").
+            warnings.append(
+                Diagnostic(line.loc, ".global_param ignored, as ngspice does: it defines nothing")
+            )
         else:
             raise NetlistError(f"unsupported directive {word}", line.loc)
     _count_elements(body, definitions, max_elements)

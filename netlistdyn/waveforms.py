@@ -324,7 +324,35 @@ class Exp:
         return f"EXP({self.v1!r} {self.v2!r} {self.td1!r} {self.tau1!r} {self.td2!r} {self.tau2!r})"
 
 
-Waveform = Dc | Pulse | Sin | Pwl | Exp
+@dataclass(frozen=True, slots=True)
+class Random:
+    """``TRNOISE(...)`` or ``TRRANDOM(...)``: ngspice's random transient waveforms.
+
+    The source is an input of the model like any other (its DC value is its operating-point and
+    ``.ac`` value, as in ngspice), but its transient is a random draw that no other run can
+    reproduce: a transient of it is refused, naming the source.
+    """
+
+    kind: str
+    name: str
+    loc: SourceLocation
+
+    def _refuse(self) -> NetlistError:
+        return NetlistError(
+            f"{self.name}: {self.kind.upper()} is a random waveform: simulate and validate cannot "
+            "reproduce it (analyze uses the source's DC value)",
+            self.loc,
+        )
+
+    def resolved(self, tstep: float, tstop: float) -> Random:
+        """Refused: a random waveform has no transient here."""
+        raise self._refuse()
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        raise self._refuse()
+
+
+Waveform = Dc | Pulse | Sin | Pwl | Exp | Random
 
 
 def breakpoint_limit() -> int:

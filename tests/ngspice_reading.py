@@ -212,10 +212,53 @@ def _keyword_values(tokens: list[str]) -> tuple[list[str], dict[str, str]]:
     return positional, keywords
 
 
+_POLY_MODEL = re.compile(r"^\.model\s+(\S+)\s+spice2poly\s+coef\s*=\s*\[([^\]]*)\]")
+_POLY_DEVICE = re.compile(r"^(a\$poly\$\S+)\s+%(vd|vnam)\s*\[([^\]]*)\]\s*%(vd|id)\s*\(([^)]*)\)\s*(\S+)$")
+
+
+def _linear_poly(text: str, models: dict[str, list[float]]) -> list[RefElement] | None:
+    """ngspice's code model for a SPICE2 ``POLY`` source, as controlled sources when it is linear.
+
+    ngspice turns ``E/F/G/H ... POLY(n) ...`` into ``a$poly$NAME %vd|%vnam [controls] %vd|%id
+    (out+ out-) model`` with ``.model model spice2poly coef = [p0 p1 ...]``. A first-order
+    polynomial without a constant is n controlled sources (a voltage output: in series through
+    internal nodes ``NAME.nK``; a current output: in parallel). None when the line is no such device
+    or the polynomial is nonlinear; a constant p0 has no place in the pencil (refused).
+    """
+    match = _POLY_DEVICE.match(text)
+    if match is None or match.group(6) not in models:
+        return None
+    name, inputs, controls, output, outs, model = match.groups()
+    controls_list = controls.split()
+    n = len(controls_list) // 2 if inputs == "vd" else len(controls_list)
+    coef = models[model]
+    if any(c != 0 for c in coef[n + 1 :]):
+        return None
+    if coef and coef[0] != 0:
+        raise ReferenceUnavailable(f"{name}: POLY with a constant term {coef[0]:g}")
+    gains = (coef[1 : n + 1] + [0.0] * n)[:n]
+    plus, minus = outs.split()
+    letter = {("vd", "vd"): "e", ("vd", "id"): "g", ("vnam", "vd"): "h", ("vnam", "id"): "f"}[
+        (inputs, output)
+    ]
+    chain = [plus] + [f"{name}.n{k}" for k in range(1, n)] + [minus]
+    out: list[RefElement] = []
+    for k, gain in enumerate(gains):
+        ends = (chain[k], chain[k + 1]) if letter in "eh" else (plus, minus)
+        ctrl = tuple(controls_list[2 * k : 2 * k + 2]) if inputs == "vd" else (controls_list[k],)
+        out.append(RefElement(f"{name}.t{k}", letter, ends, gain, ctrl))
+    return out
+
+
 def parse_reading(listing: list[str]) -> Reading:
     """Elements of ngspice's expanded listing (title line and dot cards skipped)."""
     elements: list[RefElement] = []
     nonlinear: list[str] = []
+    models: dict[str, list[float]] = {}
+    for text in listing:
+        found = _POLY_MODEL.match(text.lower().strip())
+        if found:
+            models[found.group(1)] = [spice_value(c) for c in found.group(2).split()]
     for text in listing:
         low = text.lower()
         if not low or low.startswith(("*", ".")):
@@ -224,6 +267,10 @@ def parse_reading(listing: list[str]) -> Reading:
         name, letter = fields[0], low[0]
         if re.fullmatch(r"bpa_\d+", name):
             continue  # ngspice's own B source for a par('...') in .measure/.print: drives nothing
+        poly = _linear_poly(low.strip(), models)
+        if poly is not None:
+            elements.extend(poly)
+            continue
         if letter not in LINEAR_LETTERS:
             nonlinear.append(name)
             continue

@@ -136,6 +136,41 @@ PROBES: dict[str, tuple[bytes, str]] = {
         "agree",
     ),
     "diode": (b"d\nV1 in 0 1\nR1 in a 1k\nD1 a 0 dmod\n.model dmod d\n", "refused"),
+    # ngspice's numparam reads an unbraced expression after key= (no blanks), nowhere else.
+    "keyword_unbraced_expression": (
+        b"k\n.param va=400 vb=600\nV1 in 0 1\nR1 in a R=va+vb\nC1 a 0 C=va*vb*1n\n",
+        "agree",
+    ),
+    "positional_unbraced_expression": (
+        b"k\n.param va=400 vb=600\nV1 in 0 1\nR1 in a va+vb\nC1 a 0 1u\n",
+        "ngspice-refuses",
+    ),
+    "keyword_spaced_expression": (
+        b"k\n.param va=400 vb=600\nV1 in 0 1\nR1 in a R = va + vb\nC1 a 0 1u\n",
+        "ngspice-refuses",
+    ),
+    # Xyce's .global_param: ngspice 39 skips the line (its names stay undefined).
+    "global_param_unused": (b"g\n.global_param rr=2k\n" + RC.encode(), "agree"),
+    "global_param_used": (b"g\n.global_param rr=2k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n", "ngspice-refuses"),
+    "dc_keyword_without_value": (
+        b"d\nV1 in 0 DC sin(0.5 1 1k)\nR1 in a 1k\nC1 a 0 1u\nI1 0 a DC pulse(1m 2m 0 1u 1u 1m 2m)\n",
+        "agree",
+    ),
+    # SPICE2 POLY: ngspice makes it an XSPICE spice2poly model, read back by the reference.
+    "poly_e_g_first_order": (
+        b"p\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nE1 b 0 POLY(2) a 0 in 0 0 1 -0.5\nR2 b 0 1k\nC2 b 0 1n\n"
+        b"G1 a 0 POLY(1) b 0 0 0.1m\n",
+        "agree",
+    ),
+    "poly_f_h_in_subckt": (
+        b"p\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\n.subckt amp i o\nVs i m 0\nRm m 0 1k\n"
+        b"H1 o 0 POLY(1) Vs 0 3\nF1 0 o POLY(1) Vs 0 0.5 0\n.ends\nX1 a b amp\nR2 b 0 1k\n",
+        "agree",
+    ),
+    "trnoise_source": (
+        b"n\nV1 in 0 DC 0.5 trnoise(1n 1n 0 0)\nR1 in a 1k\nC1 a 0 1u\nI1 0 a DC 1m trrandom(2 10m 0 1)\n",
+        "agree",
+    ),
 }
 
 

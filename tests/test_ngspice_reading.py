@@ -318,6 +318,44 @@ def test_nonlinear_behavioural_refused(line: str, fragment: str) -> None:
         parse_text(text)
 
 
+def test_poly_sources_as_ngspice() -> None:
+    """SPICE2 POLY on E, F, G and H: first-order terms compile, the constant p0 is a model input;
+    one coefficient is p0 for ngspice 39 (``E1 b 0 POLY(1) a 0 2`` is 2 V, not 2·v(a)). Higher
+    terms make a nonlinear expression, handled as the B source it equals."""
+    text = (
+        "poly\nV1 in 0 3\nR1 in a 1k\nR0 a 0 2k\nVs x 0 0\nR3 in x 2k\n"
+        "E1 b 0 POLY(1) a 0 2\nR2 b 0 1k\nE2 c 0 POLY(2) a 0 in 0 0.5 2 -0.25\nR4 c 0 1k\n"
+        "G1 0 d POLY(1) a 0 0 1m\nR5 d 0 1k\nF1 0 e POLY(2) V1 Vs 1m 0.5 0.25\nR6 e 0 1k\n"
+        "H1 f 0 POLY(1) Vs 0 100 0\nR7 f 0 1k\n"
+    )
+    net = same(text)
+    assert any(w.message.startswith("E1: the constant term 2") for w in net.warnings)
+
+
+def test_random_sources_use_their_dc_value() -> None:
+    """TRNOISE and TRRANDOM: the DC value in op (and in the model's inputs); no transient."""
+    same("noise\nV1 a 0 DC 2 TRNOISE(1n 1n 0 0)\nR1 a b 1k\nR2 b 0 1k\nI1 0 b DC 1m trrandom(2 10m 0 1)\n")
+
+
+def test_dc_keyword_without_value_is_zero() -> None:
+    net = same("dc\nV1 a 0 DC sin(0.5 1 1k)\nR1 a b 1k\nR2 b 0 1k\nI1 0 b 1m\n")
+    assert any("DC without a value" in w.message for w in net.warnings)
+
+
+def test_unbraced_expression_after_keyword() -> None:
+    """ngspice's numparam: ``R=va+vb`` is an expression; a positional or blank-separated one is not."""
+    net = same("kw\n.param va=400 vb=600\nV1 a 0 1\nR1 a b R=va+vb\nR2 b 0 r=va*2\n")
+    assert net.element("R1").value == pytest.approx(1000.0, rel=1e-15)
+    both_refuse("kw\n.param va=400 vb=600\nV1 a 0 1\nR1 a 0 va+vb\n", "va\\+vb")
+    both_refuse("kw\n.param va=400 vb=600\nV1 a 0 1\nR1 a 0 R = va + vb\n", "'\\+'")
+
+
+def test_global_param_is_ignored_as_ngspice() -> None:
+    net = same("gp\n.global_param rr=2k\nV1 a 0 1\nR1 a b 1k\nR2 b 0 1k\n")
+    assert any(".global_param" in w.message for w in net.warnings)
+    both_refuse("gp\n.global_param rr=2k\nV1 a 0 1\nR1 a 0 {rr}\n", "rr")
+
+
 @pytest.mark.parametrize(
     ("line", "what"), [("D1 a 0 dmod", "diode"), ("Q1 a b 0 qmod", "bipolar"), ("M1 a b 0 0 mmod", "MOSFET")]
 )

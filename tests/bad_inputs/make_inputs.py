@@ -89,6 +89,8 @@ netlist("duplicate_name", V + "R1 a 0 1\nr1 a 0 2\n", 4, "duplicate")
 netlist("perfect_coupling", V + "L1 a 0 1\nL2 a 0 1\nK1 L1 L2 1\n", 5, "ideal transformer")
 netlist("coupling_above_one", V + "R1 a b 1\nL1 b 0 1\nL2 b 0 1\nK1 L1 L2 1.5\n", 6, "K1")
 netlist("nonlinear_source", V + "R1 a 0 1\nE1 b 0 VALUE={v(a)*v(a)}\n", 4, "nonlinear expression")
+netlist("poly_without_coefficients", V + "R1 a 0 1\nE1 b 0 POLY(1) a 0\nR2 b 0 1\n", 4, "POLY(1) needs")
+netlist("poly_fractional_dimension", V + "R1 a 0 1\nG1 b 0 POLY(1.5) a 0 0 1\nR2 b 0 1\n", 4, "whole number")
 netlist("leading_continuation", "+ R1 a 0 1\n", 2, "continuation")
 netlist("pwl_odd", "V1 a 0 PWL(0 0 1)\nR1 a 0 1\n", 2, "PWL")
 netlist("pwl_time_backwards", "V1 a 0 PWL(0 0 2 1 1 0)\nR1 a 0 1\n", 2, "V1")
@@ -181,6 +183,13 @@ netlist(
     args=["simulate", "{file}"],
 )
 CASES[-1]["isolate"] = True
+netlist(
+    "trnoise_simulate",
+    "V1 a 0 DC 0 TRNOISE(1n 1n 0 0)\nR1 a b 1k\nC1 b 0 1u\n.tran 1u 1m\n",
+    2,
+    "random waveform",
+    args=["simulate", "{file}"],
+)
 netlist(
     "pulse_1ps_period_validate",
     "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n",
