@@ -297,6 +297,7 @@ def simulation_pipeline(
     x0: Any = None,
     force: bool = False,
     progress: Callable[[float], None] | None = None,
+    warn: Callable[[Any], None] | None = None,
 ) -> Simulation:
     """Horizon, input signals and integration: what ``simulate`` runs.
 
@@ -310,7 +311,9 @@ def simulation_pipeline(
     method, rtol, atol, force
         As :func:`netlistdyn.integrators.run`.
     x0 : array, optional
-        Initial state (see :func:`initial_state`).
+        Initial state (see :func:`initial_state`); by default where SPICE starts the
+        transient: the DC operating point, or with ``.tran ... UIC`` the netlist's initial
+        conditions (:func:`netlistdyn.initial.transient_start`).
     progress : callable, optional
         Called with the fraction done.
     """
@@ -332,7 +335,24 @@ def simulation_pipeline(
         raise UsageError(f"{count} output points: choose a larger --tstep")
     times = np.linspace(0.0, horizon.tstop, count + 1)
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
+    level = None
+    if x0 is None:
+        from .initial import around_equilibrium, transient_start
+
+        start = transient_start(netlist, model, signals(np.array([0.0]))[0])
+        x0 = start.x0
+        if warn is not None:
+            for warning in start.warnings:
+                warn(warning)
+        shifted = None if start.uic else around_equilibrium(model, signals, x0)
+        if shifted is not None:  # from the operating point: its constant plus what moves
+            signals, level = shifted
+            x0 = None
     result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress)
+    if level is not None:
+        from dataclasses import replace
+
+        result = replace(result, outputs=result.outputs + level[None, :])
     return Simulation(
         title=netlist.title,
         time=result.time,
@@ -363,7 +383,7 @@ def simulate(
     x0: Mapping[str, Any] | Sequence[float] | None = None,
     force: bool = False,
 ) -> Simulation:
-    """Time response of a netlist to its own source waveforms, from zero state (or ``x0``).
+    """Time response of a netlist to its own source waveforms, from where SPICE starts it (or ``x0``).
 
     Parameters
     ----------

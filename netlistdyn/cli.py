@@ -723,7 +723,8 @@ def simulate(
     quiet: bool,
     out: str | None,
 ) -> None:
-    """Time response of NETLIST to its own source waveforms, from zero state (or --ic).
+    """Time response of NETLIST to its own source waveforms, from the DC operating point
+    (with .tran ... UIC: from the IC= and .ic values, else zero; or from --ic).
 
     Exit status 3 when the method refused, failed or diverged (the message says why).
     """
@@ -770,6 +771,7 @@ def simulate(
                 prepared.x0,
                 force,
                 progress.fraction_callback(bar),
+                warn=lambda w: click.echo(str(w), err=True),
             )
         horizon = run.horizon
         unverified = run.status == "unverified"  # numbers written, but not vouched for: exit 3

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .descriptor import DescriptorSystem, assemble, supports
-from .errors import UsageError
+from .errors import NetlistError, UsageError
 from .netlist import Kind, Netlist
 
 #: Above this many MNA unknowns, ``auto`` uses the descriptor form.
@@ -91,6 +91,7 @@ def simulate_large(
     """
     from .api import Simulation
     from .display import signal_units
+    from .initial import uses_uic
     from .simulate import Horizon, source_waveform
     from .transient import DEFAULT_ORDER, run_transient
     from .waveforms import check_breakpoints
@@ -113,7 +114,16 @@ def simulate_large(
     check_breakpoints(
         [(e.name, e.loc, w) for e, w in zip(netlist.sources, waves, strict=True)], horizon.tstop
     )
-    uic = bool(getattr(netlist.tran, "uic", False)) if netlist.tran is not None else False
+    uic = uses_uic(netlist)
+    if not ics:
+        given = [e for e in netlist.elements if e.ic is not None and uic]
+        if given or netlist.initial_conditions:
+            loc = given[0].loc if given else netlist.initial_conditions[0].loc
+            raise NetlistError(
+                "the sparse descriptor form does not apply the netlist's IC= and .ic values; "
+                "give them as --ic v(node)=... i(L1)=... (or use the dense model)",
+                loc,
+            )
     x0 = _initial_unknowns(system, ics)
     started = time.process_time()
     run = run_transient(system, waves, times, x0, uic=uic, rtol=rtol, where=netlist.path, progress=progress)

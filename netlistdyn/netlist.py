@@ -127,13 +127,18 @@ class Element:
 
 @dataclass(frozen=True, slots=True)
 class TranSpec:
-    """A ``.tran TSTEP TSTOP [TSTART [TMAX]]`` directive (s)."""
+    """A ``.tran TSTEP TSTOP [TSTART [TMAX]] [UIC]`` directive (s).
+
+    ``uic``: start from the initial conditions (element ``IC=``, ``.ic``; else zero) instead of
+    the DC operating point (see :mod:`netlistdyn.initial`).
+    """
 
     tstep: float
     tstop: float
     tstart: float = 0.0
     tmax: float | None = None
     loc: SourceLocation | None = None
+    uic: bool = False
 
 
 @dataclass(frozen=True, slots=True)

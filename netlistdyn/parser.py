@@ -1408,6 +1408,12 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
 
 
 def _parse_tran(line: Line, values: _Values, warnings: list[Diagnostic]) -> TranSpec:
+    spec = _parse_tran_times(line, values, warnings)
+    uic = any(f.lower() == "uic" for f in _fields(line)[1:])
+    return replace(spec, uic=True) if uic else spec
+
+
+def _parse_tran_times(line: Line, values: _Values, warnings: list[Diagnostic]) -> TranSpec:
     fields = [f for f in _fields(line)[1:] if f.lower() not in ("uic", "startup")]
     nums = [values.number(f, line.loc, ".tran") for f in fields[:4]]
     if not nums:

@@ -71,6 +71,7 @@ class SpiceSettings:
     chgtol: float | None = None
     waveform_step: float | None = None
     grid: int = 0  # > 0: force time points at tstop·k/grid (a 0 V PWL source's corners)
+    uic: bool = True  # .tran ... uic: no operating point (validate follows the netlist's .tran)
 
     def describe(self) -> str:
         """The settings as ngspice options, for reports."""
@@ -79,7 +80,11 @@ class SpiceSettings:
             value = getattr(self, name)
             if value is not None:
                 parts.append(f"{name}={value:g}")
-        tran = f".tran {self.tstep:g} {self.tstop:g}" + (f" 0 {self.tmax:g}" if self.tmax else "") + " uic"
+        tran = (
+            f".tran {self.tstep:g} {self.tstop:g}"
+            + (f" 0 {self.tmax:g}" if self.tmax else "")
+            + (" uic" if self.uic else "")
+        )
         return f"{tran}; .options {' '.join(parts)}"
 
     def options(self) -> dict[str, Any]:
@@ -247,9 +252,11 @@ def _add_element(
     if kind is Kind.RESISTOR:
         circuit.R(name, p, n, element.value)
     elif kind is Kind.CAPACITOR:
-        circuit.C(name, p, n, element.value)
+        ic = {} if element.ic is None else {"initial_condition": element.ic}
+        circuit.C(name, p, n, element.value, **ic)
     elif kind is Kind.INDUCTOR:
-        circuit.L(name, p, n, element.value)
+        ic = {} if element.ic is None else {"initial_condition": element.ic}
+        circuit.L(name, p, n, element.value, **ic)
     elif kind in (Kind.VSOURCE, Kind.ISOURCE):
         waveform = element.waveform.resolved(*span) if element.waveform is not None else None
         wave = waveform.spice() if waveform is not None else f"DC {element.value!r}"
@@ -327,6 +334,8 @@ def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: Spice
         simulator = circuit.simulator(simulator="ngspice-shared")
         tolerate_notes(simulator)
         simulator.options(**settings.options())
+        if netlist.initial_conditions:
+            simulator.initial_condition(**{_node(ic.node): ic.value for ic in netlist.initial_conditions})
         result["netlist_text"] = str(simulator)
         start = time.perf_counter()
         try:
@@ -334,7 +343,7 @@ def _child(conn: Any, netlist: Netlist, probes: Sequence[Probe], settings: Spice
                 step_time=settings.tstep,
                 end_time=settings.tstop,
                 max_time=settings.tmax,
-                use_initial_condition=True,
+                use_initial_condition=settings.uic,
             )
         finally:
             result["seconds"] = time.perf_counter() - start

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .analysis import EigenAnalysis
+from .initial import around_equilibrium, transient_start
 from .model import StateSpaceModel
 from .netlist import Netlist
 from .probes import Probe
@@ -256,6 +257,14 @@ def compare(
     """
     notes: list[str] = []
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)  # refuses too many breakpoints first
+    u0 = signals(np.array([0.0]))[0]
+    initial = transient_start(netlist, model, u0)  # ngspice is told the same
+    # At rest with every source 0 at t = 0 the operating point is zero: ngspice starts there with
+    # UIC too, without solving for it (a mechanical analog's free mass makes that singular).
+    at_rest = not np.any(initial.x0) and not np.any(u0) and not netlist.initial_conditions
+    settings = replace(settings, uic=initial.uic or at_rest)
+    if not at_rest:
+        notes.append(f"start: {initial.how}")
     run = run_transient(netlist, probes, settings, timeout)
     for reltol in VALIDATION_RELTOLS:
         if run.ok or reltol <= settings.reltol or run.status in ("timeout", "unusable"):
@@ -277,9 +286,15 @@ def compare(
             (*notes, f"ngspice failed: {run.message}"),
         )
     start = time.perf_counter()
-    notes.extend(_impulse_notes(model, signals))
-    foh = propagate_foh(model, signals, run.time)
-    ours = foh.outputs
+    if initial.uic:
+        notes.extend(_impulse_notes(model, signals))
+    shifted = None if initial.uic else around_equilibrium(model, signals, initial.x0)
+    if shifted is None:
+        foh = propagate_foh(model, signals, run.time, initial.x0)
+        ours = foh.outputs
+    else:  # from the operating point: its constant plus the response to what moves
+        foh = propagate_foh(model, shifted[0], run.time)
+        ours = foh.outputs + shifted[1][None, :]
     if not foh.verified:
         notes.append(f"the model's own result is not vouched for: {foh.message}")
     model_seconds = time.perf_counter() - start
