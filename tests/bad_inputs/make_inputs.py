@@ -175,29 +175,13 @@ for level in range(9):
     bomb.append(".ends")
 netlist("subckt_bomb", "\n".join(bomb) + "\n" + V + "X1 a 0 s8\n", 1 + len(bomb) + 2, "X1")
 CASES[-1]["isolate"] = True
-netlist(
-    "pulse_1ps_period",
-    "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n",
-    2,
-    "breakpoints",
-    args=["simulate", "{file}"],
-)
-CASES[-1]["isolate"] = True
-netlist(
-    "trnoise_simulate",
-    "V1 a 0 DC 0 TRNOISE(1n 1n 0 0)\nR1 a b 1k\nC1 b 0 1u\n.tran 1u 1m\n",
-    2,
-    "random waveform",
-    args=["simulate", "{file}"],
-)
-netlist(
-    "pulse_1ps_period_validate",
-    "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n",
-    2,
-    "breakpoints",
-    args=["validate", "{file}"],
-)
-CASES[-1]["isolate"] = True
+# Transients that cannot run: refused before any time stepping (by simulate and by validate).
+PULSE_1PS = "V1 a 0 PULSE(0 1 0 0.1p 0.1p 0.4p 1p)\nR1 a b 1\nC1 b 0 1u\n.tran 1m 1\n"
+for command, suffix in (("simulate", ""), ("validate", "_validate")):
+    netlist(f"pulse_1ps_period{suffix}", PULSE_1PS, 2, "breakpoints", args=[command, "{file}"])
+    CASES[-1]["isolate"] = True
+TRNOISE = "V1 a 0 DC 0 TRNOISE(1n 1n 0 0)\nR1 a b 1k\nC1 b 0 1u\n.tran 1u 1m\n"
+netlist("trnoise_simulate", TRNOISE, 2, "random waveform", args=["simulate", "{file}"])
 
 # Top-level files that are not netlists.
 raw("binary_top.cir", bytes(range(256)) * 4, ["analyze", "{file}"], 1, "{file}:0", "not a text file")
