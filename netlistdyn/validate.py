@@ -261,7 +261,12 @@ def compare(
     initial = transient_start(netlist, model, u0)  # ngspice is told the same
     # At rest with every source 0 at t = 0 the operating point is zero: ngspice starts there with
     # UIC too, without solving for it (a mechanical analog's free mass makes that singular).
-    at_rest = not np.any(initial.x0) and not np.any(u0) and not netlist.initial_conditions
+    at_rest = (
+        not np.any(initial.x0)
+        and not np.any(u0)
+        and not netlist.initial_conditions
+        and all(e.ic is None for e in netlist.elements)  # IC= would count for ngspice under UIC
+    )
     settings = replace(settings, uic=initial.uic or at_rest)
     if not at_rest:
         notes.append(f"start: {initial.how}")

@@ -31,13 +31,20 @@ CIRCUITS = {
     "L1 a c 22m IC=-4m\nR3 c 0 68\n.tran 10u 4m 0 0.25u uic\n",
     "ic_held_then_released": RLC.format(lic="") + ".ic v(a)=3\n.tran 10u 4m 0 0.25u\n",
     "ic_under_uic": RLC.format(lic=" IC=5m") + ".ic v(a)=3 v(b)=-1\n.tran 10u 4m 0 0.25u uic\n",
+    # Every source 0 at t = 0: the operating point is zero, and the IC= values do not count.
+    "ic_ignored_without_uic": "V1 in 0 PULSE(0 1 0.2m 10u 10u 1 2)\nR1 in a 1k\nC1 a 0 470n IC=1\n"
+    "L1 a c 22m IC=1m\nR3 c 0 680\n.tran 10u 4m 0 0.25u\n",
 }
 #: ngspice's trapezoidal rule at its 0.25 µs maximum step against our exact propagation: the
 #: fastest mode here is |λ| ≈ 1.2e4 /s, so each step's error is about (|λ|h)³/12 ≈ 2e-9 of the
 #: peak and a few hundred steps of the decay accumulate < 1e-6 (measured: 4.6e-7 at h = 0.25 µs,
 #: 7e-6 at 1 µs, the h² ratio).
 TOLERANCE = 2e-6
-OUTPUTS = {"operating_point": ["v(a)"], "uic_element_ic": ["v(a)", "v(c)"]}
+OUTPUTS = {
+    "operating_point": ["v(a)"],
+    "uic_element_ic": ["v(a)", "v(c)"],
+    "ic_ignored_without_uic": ["v(a)", "v(c)"],
+}
 
 
 @needs_ngspice
