@@ -211,6 +211,9 @@ class Simulation:
         Method-specific counts.
     eigen : EigenAnalysis
         The eigenvalues that chose the horizon.
+    start : str
+        Where the transient started (:func:`netlistdyn.initial.transient_start`): the DC
+        operating point, the ``UIC`` initial conditions, or the given initial state.
     """
 
     title: str
@@ -226,6 +229,7 @@ class Simulation:
     horizon: Horizon
     stats: Mapping[str, float] = field(default_factory=dict)
     eigen: Any = field(default=None, repr=False)
+    start: str = ""
 
     @property
     def ok(self) -> bool:
@@ -336,11 +340,12 @@ def simulation_pipeline(
     times = np.linspace(0.0, horizon.tstop, count + 1)
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     level = None
+    how = "the given initial state"
     if x0 is None:
         from .initial import around_equilibrium, transient_start
 
         start = transient_start(netlist, model, signals(np.array([0.0]))[0])
-        x0 = start.x0
+        x0, how = start.x0, start.how
         if warn is not None:
             for warning in start.warnings:
                 warn(warning)
@@ -367,6 +372,7 @@ def simulation_pipeline(
         horizon=horizon,
         stats=dict(result.stats),
         eigen=eig,
+        start=how,
     )
 
 

@@ -816,6 +816,7 @@ def simulate(
                 f"{parsed.title}\nsimulated 0..{eng(horizon.tstop, 's')}, {result.time.size} points "
                 f"every {eng(horizon.tstep, 's')} ({horizon.source}); "
                 f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
+                f"start: {result.start}\n"
             )
             text = summary + simulation_summary(result)
             if prepared.change is not None:

@@ -345,6 +345,7 @@ def simulation_dict(sim: Any, netlist: str | None = None) -> dict[str, Any]:
             "setting": sim.setting,
             "seconds": sim.seconds,
             "status": sim.status,
+            "start": getattr(sim, "start", ""),
             "stats": dict(sim.stats),
             "horizon": {"tstep": sim.horizon.tstep, "tstop": sim.horizon.tstop, "source": sim.horizon.source},
         }
