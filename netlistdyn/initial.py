@@ -134,7 +134,15 @@ def operating_point(netlist: Netlist, model: StateSpaceModel, u0: NDArray[np.flo
     rhs = -(model.B_sparse @ np.asarray(u0, dtype=float)) if n else np.zeros(0)
     if n == 0 or not np.any(rhs):
         return np.zeros(n)
-    x0 = _solve_unique(model.A_sparse.toarray(), rhs)
+    # Displacement states of x(...) outputs only integrate a velocity: they start at 0 (the
+    # displacement from the start), and the operating point is solved for the others.
+    keep = np.array([s not in model.info.integrators for s in model.states])
+    x0 = np.zeros(n)
+    inner = _solve_unique(model.A_sparse.toarray()[np.ix_(keep, keep)], rhs[keep])
+    if inner is not None:
+        x0[keep] = inner
+    else:
+        x0 = None
     if x0 is None:
         raise NetlistError(
             "no unique DC operating point to start the transient from (the model has a zero "

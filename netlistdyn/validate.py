@@ -1,4 +1,4 @@
-"""Validation against ngspice: same netlist, same stimulus, both from zero state.
+"""Validation against ngspice: same netlist, same stimulus, same start (see :mod:`netlistdyn.initial`).
 
 The compiled model is simulated exactly (first-order hold on the union of
 ngspice's time points and the input breakpoints, see

@@ -119,3 +119,13 @@ def test_starts_that_cannot_be_imposed_are_refused(text: str, fragment: str) -> 
     with pytest.raises(NetlistError, match=fragment) as info:
         _start("t\n" + text)
     assert "\n" not in str(info.value)
+
+
+def test_displacement_output_starts_at_zero_from_the_operating_point() -> None:
+    """A mass on a damper pushed by 8 N: at the operating point it moves at F/d = 2 m/s, and its
+    displacement x(a), an integrator of that velocity, starts at 0 and grows as 2·t (exact)."""
+    text = "slide\nMASS m1 a 2\nDAMPER d1 a 0 4\nFORCE f1 a 0 8\n.tran 10m 1\n"
+    result = netlistdyn.simulate(text, outputs=["x(a)", "v(a)"])
+    assert result.start == "DC operating point"
+    np.testing.assert_allclose(result["v(a)"], 2.0, rtol=1e-12)
+    np.testing.assert_allclose(result["x(a)"], 2.0 * result.time, rtol=1e-10, atol=1e-12)
