@@ -835,9 +835,18 @@ def simulate(
 @param_option
 @tstop_option
 @click.option("--points", type=COUNT, default=1000, show_default=True, help="Grid intervals for scoring.")
-@click.option("--repeats", type=COUNT, default=3, show_default=True, help="Timed repetitions (median).")
 @click.option(
-    "--timeout", type=POSITIVE, default=600.0, show_default=True, help="Seconds allowed to each run."
+    "--budget",
+    type=POSITIVE,
+    default=120.0,
+    show_default=True,
+    help="Seconds of wall time for the whole bench; rows that do not fit are stopped and reported.",
+)
+@click.option(
+    "--repeats", type=COUNT, default=3, show_default=True, help="Timed repetitions at most (median)."
+)
+@click.option(
+    "--timeout", type=POSITIVE, default=600.0, show_default=True, help="Seconds allowed to any one run."
 )
 @click.option(
     "--method",
@@ -852,7 +861,12 @@ def simulate(
     type=POSITIVE,
     default=1e-12,
     show_default=True,
-    help="Tolerance of the large-model reference (checked 10x looser).",
+    help="Tolerance of the rational run that checks the reference.",
+)
+@click.option(
+    "--stream",
+    is_flag=True,
+    help="Write each row as it is done (with --format json: JSON lines), also to -o FILE (not atomic).",
 )
 @path_option("--plot", "Log-log plot of error against time (PNG, or .svg/.pdf by extension).")
 @format_option
@@ -864,24 +878,39 @@ def bench(
     params: tuple[str, ...],
     tstop: float | None,
     points: int,
+    budget: float,
     repeats: int,
     timeout: float,
     methods: tuple[str, ...],
     ngspice: bool,
     reference_rtol: float,
+    stream: bool,
     plot: str | None,
     fmt: str,
     quiet: bool,
     out: str | None,
 ) -> None:
-    """Error against run time for every integration method and for ngspice, on NETLIST."""
+    """Error against run time for our integration methods and for ngspice, on NETLIST, within a budget."""
+    import time
+
+    started = time.perf_counter()
 
     def body() -> int:
         from . import progress
         from .analysis import analyze_eigenvalues
         from .bench import MAX_POINTS, run_bench
         from .probes import parse_probe
-        from .report import bench_dict, bench_text, to_json
+        from .report import (
+            bench_dict,
+            bench_head_dict,
+            bench_line,
+            bench_row_dict,
+            bench_text,
+            bench_text_head,
+            bench_text_row,
+            bench_text_tail,
+            to_json,
+        )
         from .simulate import choose_horizon
         from .validate import spice_settings_for
 
@@ -899,7 +928,23 @@ def bench(
             model.A_sparse, "auto" if model.nstates <= 1000 else "extreme", pencil=model.pencil
         )
         horizon = choose_horizon(parsed, eig, tstop, None)
-        with progress.bar("bench", 100, quiet, unit="%") as bar:
+        # Text goes out row by row on stdout (or with --stream); JSON lines only with --stream.
+        live = stream or (fmt == "text" and (not out or out == STDOUT))
+        with (
+            progress.bar("bench", None, quiet, unit="row") as bar,
+            _stream("jsonl" if live else fmt, out) as write,
+        ):
+
+            def send(text: str) -> None:
+                if write is not None:
+                    with bar.external_write_mode():
+                        write(text.rstrip("\n"))
+
+            def started_row(label: str, done: int, total: int) -> None:
+                bar.total = total or None
+                bar.n = done
+                bar.set_description(f"bench: {label}")
+
             report = run_bench(
                 parsed,
                 model,
@@ -912,13 +957,35 @@ def bench(
                 methods or None,
                 ngspice,
                 reference_rtol,
-                progress.fraction_callback(bar),
+                budget,
+                started,
+                on_reference=lambda head: send(
+                    bench_text_head(head)
+                    if fmt == "text"
+                    else bench_line({"record": "head", **bench_head_dict(head)})
+                ),
+                on_start=started_row,
+                on_row=lambda row: send(
+                    bench_text_row(row)
+                    if fmt == "text"
+                    else bench_line({"record": "row", **bench_row_dict(row)})
+                ),
             )
+            if live:
+                tail = bench_dict(report)
+                send(
+                    bench_text_tail(report)
+                    if fmt == "text"
+                    else bench_line(
+                        {"record": "end", "elapsed": tail["elapsed"], "load_average": tail["load_average"]}
+                    )
+                )
         if plot:
             from .plots import bench_plot
 
             bench_plot(report, plot)
-        emit(to_json(bench_dict(report)) if fmt == "json" else bench_text(report), out)
+        if not live:
+            emit(to_json(bench_dict(report)) if fmt == "json" else bench_text(report), out)
         return 0
 
     run_guarded(body)

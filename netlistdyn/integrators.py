@@ -18,7 +18,8 @@
     is about their difference / (2²³ − 1).
 ``krylov``
     scipy's ``expm_multiply`` (truncated Taylor with scaling) on the same
-    augmented system, interval by interval.
+    augmented system: one call per run of equal intervals over which the
+    input is one linear piece, else interval by interval.
 ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``
     scipy's ``solve_ivp`` with the constant Jacobian (sparse for large
     models), ``rtol``/``atol`` as given, evaluated at the output times.
@@ -455,13 +456,35 @@ def _krylov(
     x = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float).copy()
     states = np.empty((events.size, n))
     states[0] = x
-    for k in range(1, events.size):
-        length = events[k] - events[k - 1]
-        if length > 0:
-            slope = (u_left[k] - u_events[k - 1]) / length
-            z = np.concatenate([x, u_events[k - 1], slope])
-            x = spla.expm_multiply(big * length, z)[:n]
-        states[k] = x
+    lengths = np.diff(events)
+    slopes = (u_left[1:] - u_events[:-1]) / np.where(lengths > 0, lengths, 1.0)[:, None]
+    k = 1
+    while k < events.size:
+        length = lengths[k - 1]
+        if length <= 0:
+            states[k] = x
+            k += 1
+            continue
+        # A run of equal intervals over which the input stays one linear piece (no jump, same
+        # slope) is one autonomous stretch of the augmented system: one call for all its times.
+        slope, last = slopes[k - 1], k
+        tol = 1e-12 * (np.abs(slope) + np.max(np.abs(u_events[k - 1]), initial=0.0) / length)
+        while (
+            last + 1 < events.size
+            and abs(lengths[last] - length) <= 1e-12 * length
+            and np.array_equal(u_left[last], u_events[last])
+            and np.all(np.abs(slopes[last] - slope) <= tol)
+        ):
+            last += 1
+        z = np.concatenate([x, u_events[k - 1], slope])
+        if last == k:
+            states[k] = x = spla.expm_multiply(big * length, z)[:n]
+        else:
+            count = last - k + 1
+            run = spla.expm_multiply(big, z, start=0.0, stop=length * count, num=count + 1, endpoint=True)
+            states[k : last + 1] = run[1:, :n]
+            x = states[last].copy()
+        k = last + 1
     index = np.searchsorted(events, times)
     y = states[index] @ model.C.T + u_events[index] @ model.D.T
     if model.has_input_derivative:

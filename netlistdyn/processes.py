@@ -1,14 +1,21 @@
-"""Running a function in a child process with a time limit.
+"""Running a function or a program in a child process with a time limit.
 
-Used for ngspice (PySpice's shared mode leaks and cannot be interrupted)
-and for benchmark runs (a stalled solver must not stall the benchmark).
+Used for ngspice (PySpice's shared mode leaks and cannot be interrupted;
+batch ``ngspice -b`` for benchmarks) and for benchmark runs (a stalled
+solver must not stall the benchmark).
 """
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
+import signal
+import subprocess
+import tempfile
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 
@@ -49,9 +56,90 @@ def run_in_child_status(
         with contextlib.suppress(EOFError):
             result = parent.recv()
             how = "ok"
+    if how == "timeout":
+        proc.kill()  # out of time: stopped now, not after a grace period
     proc.join(timeout=5)
     if proc.is_alive():
         proc.kill()
         proc.join()
     parent.close()
     return result, how
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramRun:
+    """How a program run by :func:`run_program` ended.
+
+    Attributes
+    ----------
+    how : str
+        "ok" (it exited by itself, whatever its status), "timeout" (killed at
+        the time limit) or "missing" (the program could not be started).
+    returncode : int
+        Its exit status (negative: killed by that signal).
+    stdout, stderr : str
+        What it wrote (decoded leniently).
+    cpu : float
+        User + system CPU time of the child itself (s), from its resource usage.
+    wall : float
+        Wall time from start to exit (s).
+    """
+
+    how: str
+    returncode: int
+    stdout: str
+    stderr: str
+    cpu: float
+    wall: float
+
+
+def run_program(args: list[str], timeout: float | None, cwd: str | None = None) -> ProgramRun:
+    """Run a program with a time limit and measure its own CPU and wall time.
+
+    The child's resource usage comes from ``wait4`` on that child alone (not
+    from all children of this process), so it is exact also for a child
+    stopped at the time limit. Its output goes to temporary files (no pipe
+    can fill up and stall it).
+
+    Parameters
+    ----------
+    args : list of str
+        The command line.
+    timeout : float or None
+        Seconds of wall time before the child (and its process group) is killed.
+    cwd : str, optional
+        Working directory.
+    """
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        start = time.perf_counter()
+        try:
+            proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=cwd, start_new_session=True)
+        except OSError as exc:
+            return ProgramRun("missing", -1, "", str(exc), 0.0, 0.0)
+        deadline = None if timeout is None else start + timeout
+        how, pause = "ok", 0.001
+        while True:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                break
+            now = time.perf_counter()
+            if deadline is not None and now >= deadline:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                pid, status, usage = os.wait4(proc.pid, 0)
+                how = "timeout"
+                break
+            time.sleep(min(pause, deadline - now) if deadline is not None else pause)
+            pause = min(pause * 2, 0.05)
+        wall = time.perf_counter() - start
+        proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+        out.seek(0)
+        err.seek(0)
+        return ProgramRun(
+            how,
+            proc.returncode,
+            out.read().decode("utf-8", "replace"),
+            err.read().decode("utf-8", "replace"),
+            usage.ru_utime + usage.ru_stime,
+            wall,
+        )

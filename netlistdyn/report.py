@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -365,8 +366,8 @@ def simulation_summary(sim: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
-def bench_dict(report: Any) -> dict[str, Any]:
-    """The JSON document for ``bench --format json``."""
+def bench_head_dict(report: Any) -> dict[str, Any]:
+    """The part of ``bench --format json`` known once the reference is: everything but the rows."""
     return {
         "netlist": report.netlist,
         "title": report.title,
@@ -376,38 +377,100 @@ def bench_dict(report: Any) -> dict[str, Any]:
             "method": report.reference.method,
             "check": report.reference.check,
             "agreement": report.reference.agreement,
+            "seconds": report.reference.seconds,
         },
-        "rows": [
-            {
-                "method": r.method,
-                "setting": r.setting,
-                "error": r.error,
-                "seconds": r.seconds,
-                "status": r.status,
-                "message": r.message,
-            }
-            for r in report.rows
-        ],
+        "budget": report.budget,
     }
+
+
+def bench_row_dict(row: Any) -> dict[str, Any]:
+    """One row of ``bench --format json`` (wall and CPU seconds, runs behind the median)."""
+    return {
+        "method": row.method,
+        "setting": row.setting,
+        "error": row.error,
+        "seconds": row.seconds,
+        "cpu_seconds": row.cpu,
+        "runs": row.runs,
+        "status": row.status,
+        "message": row.message,
+    }
+
+
+def bench_dict(report: Any) -> dict[str, Any]:
+    """The JSON document for ``bench --format json``."""
+    return {
+        **bench_head_dict(report),
+        "elapsed": report.elapsed,
+        "load_average": _load_average(),
+        "rows": [bench_row_dict(r) for r in report.rows],
+    }
+
+
+def _load_average() -> float | None:
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return None
+
+
+BENCH_COLUMNS = f"  {'method':<14} {'setting':<44} {'error/peak':>11} {'wall s':>9} {'CPU s':>9}  status"
+
+
+def bench_text_head(report: Any) -> str:
+    """The ``bench`` report's head: the case, the reference and its accuracy, the column titles."""
+    ref = report.reference
+    budget = f"; budget {report.budget:g} s" if math.isfinite(report.budget) else ""
+    took = f" ({ref.seconds:.3g} s)" if math.isfinite(ref.seconds) else ""
+    return (
+        "\n".join(
+            [
+                report.title,
+                f"netlist: {report.netlist}; {report.nstates} states; "
+                f"horizon {eng(report.horizon.tstop, 's')}, scored at {report.points} grid steps{budget}",
+                f"reference: {ref.method}{took}; accuracy {ref.agreement:.2g}: "
+                f"its agreement with {ref.check}",
+                "",
+                BENCH_COLUMNS,
+            ]
+        )
+        + "\n"
+    )
+
+
+def bench_text_row(row: Any) -> str:
+    """One line of the ``bench`` table."""
+    err = f"{row.error:.2g}" if math.isfinite(row.error) else "-"
+    sec = f"{row.seconds:.3f}" if math.isfinite(row.seconds) and row.status != "stopped" else "-"
+    cpu = f"{row.cpu:.3f}" if math.isfinite(row.cpu) else "-"
+    if row.status == "ok":
+        note = "ok" if row.runs <= 1 else f"ok (median of {row.runs})"
+        note += f"; {row.message}" if row.message else ""
+    else:
+        note = row.message if row.status == "stopped" else f"{row.status}: {row.message}"
+    return f"  {row.method:<14} {row.setting:<44} {err:>11} {sec:>9} {cpu:>9}  {note}\n"
+
+
+def bench_text_tail(report: Any) -> str:
+    """The ``bench`` report's last line: time taken against the budget, rows stopped or skipped, load."""
+    counts = {s: sum(r.status == s for r in report.rows) for s in ("stopped", "skipped")}
+    budget = f" of the {report.budget:g} s budget" if math.isfinite(report.budget) else ""
+    load = _load_average()
+    where = f"; load average {load:.2g} on {os.cpu_count()} CPUs" if load is not None else ""
+    return (
+        f"done in {report.elapsed:.3g} s{budget}; {len(report.rows)} rows, {counts['stopped']} stopped, "
+        f"{counts['skipped']} skipped{where}\n"
+    )
+
+
+def bench_line(record: dict[str, Any]) -> str:
+    """One record of ``bench --format json --stream`` as one line of JSON."""
+    return json.dumps(_clean(record))
 
 
 def bench_text(report: Any) -> str:
     """The ``bench`` table for people."""
-    ref = report.reference
-    out = [
-        report.title,
-        f"netlist: {report.netlist}; {report.nstates} states; horizon {eng(report.horizon.tstop, 's')}, "
-        f"scored at {report.points} grid steps",
-        f"reference: {ref.method}, checked against {ref.check}: agreement {ref.agreement:.2g}",
-        "",
-        f"  {'method':<14} {'setting':<44} {'error/peak':>11} {'seconds':>9}  status",
-    ]
-    for r in report.rows:
-        err = f"{r.error:.2g}" if math.isfinite(r.error) else "-"
-        sec = f"{r.seconds:.3f}" if math.isfinite(r.seconds) else "-"
-        note = r.status if r.status == "ok" else f"{r.status}: {r.message}"
-        out.append(f"  {r.method:<14} {r.setting:<44} {err:>11} {sec:>9}  {note}")
-    return "\n".join(out) + "\n"
+    return bench_text_head(report) + "".join(bench_text_row(r) for r in report.rows) + bench_text_tail(report)
 
 
 def control_dict(structure: Any, tfs: Sequence[Any]) -> dict[str, Any]:

@@ -20,7 +20,7 @@ import os
 import time
 from collections.abc import Sequence
 from ctypes.util import find_library
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -124,6 +124,7 @@ class SpiceRun:
     message: str = ""
     netlist_text: str = field(default="", repr=False)
     status: str = "ok"  # "ok", "failed" (ngspice ran and refused), "timeout" or "unusable"
+    cpu: float = float("nan")  # CPU time of the ngspice process (s), from its resource usage (batch runs)
 
 
 def ngspice_missing() -> str | None:
@@ -474,6 +475,135 @@ def run_transient(
         result.get("netlist_text", ""),
         status,
     )
+
+
+def batch_missing() -> str | None:
+    """``None`` when batch ngspice can run (the ``ngspice`` program, PySpice to write the deck)."""
+    import shutil
+
+    if importlib.util.find_spec("PySpice") is None or shutil.which("ngspice") is None:
+        return INSTALL_HINT
+    return None
+
+
+class _Table:
+    """ngspice's vectors read back from ``wrdata``, shaped as PySpice's analysis (for :func:`_vector`)."""
+
+    def __init__(self, time: NDArray[np.float64], nodes: dict[str, Any], branches: dict[str, Any]) -> None:
+        self.time = time
+        self.nodes = nodes
+        self.branches = branches
+
+
+def _batch_vectors(netlist: Netlist, probes: Sequence[Probe]) -> tuple[list[str], list[str]]:
+    """Node names and branch names (lower case) that the probes read."""
+    nodes: list[str] = []
+    branches: list[str] = []
+    for probe in probes:
+        if probe.kind == "v":
+            nodes += [n for n in probe.nodes if n != GROUND]
+        elif probe.kind == "x":
+            nodes.append(_integrator_node(probe))
+        else:
+            element = netlist.element(probe.element)
+            name = spice_name(element) if element.kind in _BRANCH_KINDS else _sense_name(element)
+            branches.append(name.lower())
+    return list(dict.fromkeys(nodes)), list(dict.fromkeys(branches))
+
+
+def batch_deck(netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings, data: str) -> str:
+    """The deck run by :func:`run_batch`: the circuit, its options, and a control block writing ``data``."""
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)  # PySpice warns about node names such as "in"; ngspice reads them
+    try:
+        circuit = build_circuit(netlist, probes, settings.waveform_step or settings.tstep, settings.tstop)
+        text = str(circuit).rstrip("\n")
+    finally:
+        logging.disable(previous)
+    lines = [text]
+    if settings.grid:
+        # ngspice lands a step on every source breakpoint: a 0 V PWL source with a corner
+        # at each grid time puts those times in the output, with no interpolation.
+        corners = " ".join(f"{settings.tstop * k / settings.grid!r} 0" for k in range(settings.grid + 1))
+        lines += [
+            f"Vnetlistdyn_grid netlistdyn_grid 0 PWL({corners})",
+            "Rnetlistdyn_grid netlistdyn_grid 0 1",
+        ]
+    lines.append(".options " + " ".join(f"{k}={v}" for k, v in settings.options().items()))
+    nodes, branches = _batch_vectors(netlist, probes)
+    vectors = [f"v({n})" for n in nodes] + [f"{b}#branch" for b in branches]
+    lines.append(".save " + " ".join(vectors))
+    tmax = f" 0 {settings.tmax!r}" if settings.tmax else ""
+    lines += [
+        ".control",
+        "set wr_singlescale",
+        "set wr_vecnames",
+        "option numdgt=16",
+        f"tran {settings.tstep!r} {settings.tstop!r}{tmax} uic",
+        f"wrdata {data} " + " ".join(vectors),
+        "quit",
+        ".endc",
+        ".end",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def run_batch(
+    netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings, timeout: float | None = None
+) -> SpiceRun:
+    """Run ngspice in batch mode (``ngspice -b``), as a user would, and read the probed waveforms.
+
+    Unlike :func:`run_transient` (PySpice's shared library, which keeps every
+    vector), only the probed vectors are saved, and the CPU and wall times
+    are the ngspice process's own (its resource usage; the wall time includes
+    reading the deck). Used by ``bench``.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    probes : sequence of Probe
+    settings : SpiceSettings
+    timeout : float, optional
+        Seconds of wall time after which ngspice is killed.
+
+    Returns
+    -------
+    SpiceRun
+        ``status`` "ok", "failed", "timeout" or "unusable"; ``seconds`` is the wall time,
+        ``cpu`` the CPU time.
+    """
+    import shutil
+    import tempfile
+
+    from .processes import run_program
+
+    binary = shutil.which("ngspice")
+    if binary is None:
+        return SpiceRun(np.zeros(0), {}, 0.0, settings, False, INSTALL_HINT, status="unusable")
+    with tempfile.TemporaryDirectory(prefix="netlistdyn-batch") as tmp:
+        data = os.path.join(tmp, "out.txt")
+        deck = batch_deck(netlist, probes, settings, data)
+        with open(os.path.join(tmp, "deck.cir"), "w", encoding="utf-8") as handle:
+            handle.write(deck)
+        run = run_program([binary, "-b", "deck.cir"], timeout, cwd=tmp)
+        table = np.zeros((0, 1))
+        if run.how == "ok" and os.path.exists(data):
+            with contextlib.suppress(ValueError):
+                table = np.atleast_2d(np.loadtxt(data, skiprows=1, ndmin=2))
+    fail = SpiceRun(np.zeros(0), {}, run.wall, settings, False, "", deck, "failed", run.cpu)
+    if run.how == "timeout":
+        return replace(fail, message=f"ngspice did not finish within {timeout:g} s", status="timeout")
+    if run.how == "missing":
+        return replace(fail, message=f"ngspice cannot be started: {run.stderr}", status="unusable")
+    nodes, branches = _batch_vectors(netlist, probes)
+    t = table[:, 0] if table.shape[1] == 1 + len(nodes) + len(branches) else np.zeros(0)
+    if t.size == 0 or t[-1] < settings.tstop * (1 - 1e-9):
+        stopped = f"ngspice stopped at t={t[-1]:g} s" if t.size else "ngspice wrote no result"
+        return replace(fail, message=_failure_message(run.stdout + run.stderr) or stopped)
+    columns = iter(table[:, 1:].T)
+    view = _Table(t, {n: next(columns) for n in nodes}, {b: next(columns) for b in branches})
+    outputs = {p.name: _vector(view, p, netlist) for p in probes}
+    return SpiceRun(t, outputs, run.wall, settings, True, "", deck, "ok", run.cpu)
 
 
 @dataclass(frozen=True)

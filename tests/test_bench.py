@@ -1,0 +1,152 @@
+"""`netlistdyn bench` within a time budget (issue #19): rows stopped and reported, batch ngspice, streaming.
+
+The 1000-section ladder acceptance run is a measurement (README, `netlistdyn bench`); these tests
+check the mechanics on Circuit 1 in a few seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from netlistdyn import bench, integrators
+from netlistdyn.cli import load_and_compile, main
+from netlistdyn.probes import parse_probe
+from netlistdyn.processes import run_program
+from netlistdyn.simulate import Horizon
+from netlistdyn.spice import SpiceSettings, batch_missing, run_batch, run_transient
+
+from .conftest import NETLISTS
+
+CIRCUIT1 = NETLISTS / "circuit1.cir"
+SCHEMAS = Path(__file__).resolve().parent.parent / "netlistdyn" / "schemas"
+
+
+def _circuit1() -> tuple:
+    parsed, model = load_and_compile(str(CIRCUIT1), (), ["v(a)"])
+    return parsed, model, [parse_probe("v(a)", parsed)]
+
+
+def test_tiny_budget_stops_rows_and_reports_every_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A method that never ends is stopped at its share; every planned row is reported, in order.
+
+    RK45 is replaced by a run that sleeps for a minute (the child inherits the patch through fork),
+    so the budget of 5 s can only be kept by stopping it; the exact row must still be scored.
+    """
+    original = integrators.run
+
+    def never_ends(model, signals, times, method="auto", *args, **kwargs):
+        if method == "RK45":
+            time.sleep(60)
+        return original(model, signals, times, method, *args, **kwargs)
+
+    monkeypatch.setattr(integrators, "run", never_ends)
+    parsed, model, probes = _circuit1()
+    streamed: list[bench.BenchRow] = []
+    budget = 5.0
+    start = time.perf_counter()
+    report = bench.run_bench(
+        parsed,
+        model,
+        probes,
+        Horizon(0.01, 1.0, "test"),
+        points=100,
+        repeats=1,
+        methods=("exact", "RK45"),
+        with_ngspice=False,
+        budget=budget,
+        on_row=streamed.append,
+    )
+    took = time.perf_counter() - start
+    assert took < budget, f"the bench took {took:.2f} s of its {budget} s budget"
+    assert list(report.rows) == streamed  # each row was handed over as soon as it was done
+    assert [(r.method, r.setting.split(",")[0]) for r in report.rows[1:]] == [
+        ("RK45", f"rtol={r:g}") for r in bench.LADDERS["RK45"]
+    ]
+    exact = report.rows[0]
+    assert exact.method == "exact" and exact.status == "ok"
+    assert exact.error < 1e-9  # the reference's agreement with rational at 1e-12
+    first = report.rows[1]
+    assert (
+        first.status == "stopped" and first.message.startswith("> ") and first.message.endswith(" s, stopped")
+    )
+    assert math.isnan(first.error)
+    for row in report.rows[2:]:  # tighter settings: stopped again or skipped, with the reason
+        assert row.status in ("stopped", "skipped"), row
+        assert row.message.endswith("stopped") or row.message.startswith("not started")
+
+
+def test_stream_writes_json_lines_as_rows_finish(tmp_path: Path) -> None:
+    """`--format json --stream`: a head, one line per row, an end, each matching bench-line.json."""
+    jsonschema = pytest.importorskip("jsonschema")
+    schema = json.loads((SCHEMAS / "bench-line.json").read_text())
+    target = tmp_path / "bench.jsonl"
+    args = [
+        "bench",
+        str(CIRCUIT1),
+        "--no-ngspice",
+        "--method",
+        "exact",
+        "--method",
+        "LSODA",
+        "--repeats",
+        "1",
+    ]
+    args += ["--points", "100", "--budget", "60", "--format", "json", "--stream", "-o", str(target), "-q"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    records = [json.loads(line) for line in target.read_text().splitlines()]
+    for record in records:
+        jsonschema.Draft202012Validator(schema).validate(record)
+    assert [r["record"] for r in records] == ["head"] + ["row"] * 4 + ["end"]
+    assert records[0]["budget"] == 60
+    assert records[-1]["elapsed"] < 60
+    assert {r["method"] for r in records[1:-1]} == {"exact", "LSODA"}
+
+
+def test_run_program_stops_a_program_at_its_limit() -> None:
+    start = time.perf_counter()
+    run = run_program([sys.executable, "-c", "while True: pass"], 0.5)
+    assert run.how == "timeout" and run.returncode < 0
+    assert time.perf_counter() - start < 5
+    assert run.cpu > 0
+    done = run_program([sys.executable, "-c", "print('hi')"], 30)
+    assert done.how == "ok" and done.returncode == 0 and done.stdout.strip() == "hi"
+
+
+@pytest.mark.skipif(batch_missing() is not None, reason="ngspice not installed")
+def test_batch_ngspice_reads_what_the_shared_library_reads() -> None:
+    """`ngspice -b` on the deck bench writes gives the same waveforms as PySpice's shared ngspice.
+
+    Same ngspice, same deck, same time points: the waveforms must agree to the digits written out
+    (16 significant), i.e. to 1e-13 of the peak; the CPU time is ngspice's own, from its resource usage.
+    """
+    parsed, model = load_and_compile(str(CIRCUIT1), (), ["v(a)", "i(L1)", "i(R1)"])
+    probes = [parse_probe(name, parsed) for name in model.outputs]
+    settings = SpiceSettings(1e-3, 1.0, method="gear", grid=100)
+    batch = run_batch(parsed, probes, settings, 60)
+    shared = run_transient(parsed, probes, settings, 60)
+    assert batch.ok and shared.ok, (batch.message, shared.message)
+    assert batch.cpu > 0 and math.isfinite(batch.cpu)
+    assert batch.time.size == shared.time.size
+    np.testing.assert_allclose(batch.time, shared.time, rtol=0, atol=1e-13)
+    for probe in probes:
+        peak = np.max(np.abs(shared.outputs[probe.name]))
+        assert np.max(np.abs(batch.outputs[probe.name] - shared.outputs[probe.name])) <= 1e-13 * peak
+
+
+@pytest.mark.skipif(batch_missing() is not None, reason="ngspice not installed")
+def test_batch_ngspice_is_stopped_at_its_limit() -> None:
+    parsed, _model, probes = _circuit1()
+    slow = SpiceSettings(1e-3, 10.0, tmax=1e-7)  # 1e8 steps
+    start = time.perf_counter()
+    run = run_batch(parsed, probes, slow, 0.5)
+    assert run.status == "timeout" and not run.ok
+    assert time.perf_counter() - start < 10
