@@ -17,7 +17,7 @@ import os
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
 import numpy as np
@@ -302,6 +302,7 @@ def simulation_pipeline(
     force: bool = False,
     progress: Callable[[float], None] | None = None,
     warn: Callable[[Any], None] | None = None,
+    step: float | None = None,
 ) -> Simulation:
     """Horizon, input signals and integration: what ``simulate`` runs.
 
@@ -320,15 +321,27 @@ def simulation_pipeline(
         conditions (:func:`netlistdyn.initial.transient_start`).
     progress : callable, optional
         Called with the fraction done.
+    step : float, optional
+        The fixed step of ``method="euler"`` (s); its output times are the steps.
     """
     from . import integrators
     from .analysis import analyze_eigenvalues
     from .display import signal_units
     from .simulate import choose_horizon, input_signals
 
-    for value, name in ((tstop, "--tstop"), (tstep, "--tstep")):
+    for value, name in ((tstop, "--tstop"), (tstep, "--tstep"), (step, "--step")):
         if value is not None and not value > 0:
             raise UsageError(f"{name} must be positive")
+    if method == "euler":
+        if step is None:
+            raise UsageError("--method euler needs a fixed step: --step H (s)")
+        if tstep is not None and abs(tstep - step) > 1e-9 * step:
+            raise UsageError(
+                f"--method euler reports every step: --tstep must be --step ({step:g}) or omitted"
+            )
+        tstep = step
+    elif step is not None:
+        raise UsageError("--step is the fixed step of --method euler")
     eig = analyze_eigenvalues(
         model.A_sparse, "auto" if model.nstates <= 1000 else "extreme", pencil=model.pencil
     )
@@ -338,6 +351,8 @@ def simulation_pipeline(
     if count > MAX_POINTS:
         raise UsageError(f"{count} output points: choose a larger --tstep")
     times = np.linspace(0.0, horizon.tstop, count + 1)
+    if method == "euler":  # the output times are the steps k·h up to tstop
+        times = np.arange(int(horizon.tstop / horizon.tstep * (1 + 1e-12)) + 1) * horizon.tstep
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     level = None
     how = "the given initial state"
@@ -353,7 +368,7 @@ def simulation_pipeline(
         if shifted is not None:  # from the operating point: its constant plus what moves
             signals, level = shifted
             x0 = None
-    result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress)
+    result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress, step)
     if level is not None:
         from dataclasses import replace
 
@@ -388,6 +403,7 @@ def simulate(
     atol: float | str | None = None,
     x0: Mapping[str, Any] | Sequence[float] | None = None,
     force: bool = False,
+    step: float | str | None = None,
 ) -> Simulation:
     """Time response of a netlist to its own source waveforms, from where SPICE starts it (or ``x0``).
 
@@ -402,13 +418,21 @@ def simulate(
     tstop, tstep : float or str, optional
         Horizon and output step (s); SPICE numbers accepted (``"20m"``).
     method : str
-        ``auto``, ``exact``, ``rational``, ``krylov`` or a ``solve_ivp`` method.
+        ``auto``, ``exact``, ``rational``, ``krylov``, ``euler`` (fixed ``step``) or a
+        ``solve_ivp`` method.
     rtol, atol : float or str
         Tolerances.
     x0 : mapping or sequence, optional
-        Initial state, by state name (``{"q(C1)": 1e-6}``) or as a vector.
+        Initial state as a vector, or by name as ``--ic`` takes it: state names
+        (``{"q(C1)": 1e-6}``) and physical variables (``{"angle(r1)": -0.01}``,
+        ``x(node)``, ``v(node)``, ``omega(rod)``...), mixed; states no condition
+        involves start at 0.
     force : bool
         Run an explicit method on a stiff model anyway.
+    step : float or str, optional
+        The fixed step of ``method="euler"`` (s); the output times are its steps,
+        and the result's ``stats``/``message`` give its error against the exact
+        solution at those times.
 
     Returns
     -------
@@ -420,7 +444,19 @@ def simulate(
         When the method refused, failed or diverged.
     """
     with api_errors(params):
-        parsed, model = compile_model(netlist, params, outputs)
+        if isinstance(x0, Mapping) and x0:
+            from .coordinates import prepare
+
+            parsed = read_netlist(netlist, params)
+            conditions = [
+                f"{name}={value if isinstance(value, str) else repr(float(value))}"
+                for name, value in x0.items()
+            ]
+            prepared = prepare(parsed, list(outputs) if outputs else None, None, conditions)
+            model, start, shown = prepared.full, prepared.x0, prepared.shown
+        else:
+            parsed, model = compile_model(netlist, params, outputs)
+            start, shown = initial_state(model, x0), tuple(model.outputs)
         result = simulation_pipeline(
             parsed,
             model,
@@ -429,8 +465,17 @@ def simulate(
             method,
             to_number(rtol, "rtol"),
             None if atol is None else to_number(atol, "atol"),
-            initial_state(model, x0),
+            start,
             force,
+            step=None if step is None else to_number(step, "step"),
+        )
+    if tuple(shown) != result.outputs:  # variables the conditions needed are not outputs
+        keep = [result.outputs.index(name) for name in shown]
+        result = replace(
+            result,
+            values=result.values[:, keep],
+            outputs=tuple(shown),
+            units=tuple(result.units[k] for k in keep),
         )
     if not result.ok and result.status != "unverified":  # unverified: numbers, with the reason
         raise SimulationError(f"{result.method} {result.status}: {result.message}", result)

@@ -661,11 +661,18 @@ def validate(
 @click.option("--tstep", type=POSITIVE, default=None, help="Output step [s] (default: tstop/1000).")
 @click.option(
     "--method",
-    type=click.Choice([*METHOD_CHOICES, "descriptor"]),
+    type=click.Choice([*METHOD_CHOICES, "euler", "descriptor"]),
     default="auto",
     show_default=True,
     help="exact (dense expm, small models), rational (sparse Padé, large models), krylov, "
-    "a scipy solve_ivp method, or descriptor (sparse MNA form, power grids); auto picks by size.",
+    "a scipy solve_ivp method, euler (forward Euler at a fixed --step, with its error against the "
+    "exact solution), or descriptor (sparse MNA form, power grids); auto picks by size.",
+)
+@click.option(
+    "--step",
+    type=POSITIVE,
+    default=None,
+    help="The fixed step of --method euler [s]; the output times are its steps.",
 )
 @click.option("--rtol", type=POSITIVE, default=1e-10, show_default=True, help="Relative tolerance.")
 @click.option("--atol", type=POSITIVE, default=None, help="Absolute tolerance (solve_ivp methods).")
@@ -707,6 +714,7 @@ def simulate(
     tstop: float | None,
     tstep: float | None,
     method: str,
+    step: float | None,
     rtol: float,
     atol: float | None,
     ics: tuple[str, ...],
@@ -772,6 +780,7 @@ def simulate(
                 force,
                 progress.fraction_callback(bar),
                 warn=lambda w: click.echo(str(w), err=True),
+                step=step,
             )
         horizon = run.horizon
         unverified = run.status == "unverified"  # numbers written, but not vouched for: exit 3
@@ -819,6 +828,8 @@ def simulate(
                 f"start: {result.start}\n"
             )
             text = summary + simulation_summary(result)
+            if result.method == "euler" and result.message:  # its error against the exact solution
+                text += result.message + "\n"
             if prepared.change is not None:
                 from .coordinates import change_text
 

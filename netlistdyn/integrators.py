@@ -20,6 +20,12 @@
     scipy's ``expm_multiply`` (truncated Taylor with scaling) on the same
     augmented system: one call per run of equal intervals over which the
     input is one linear piece, else interval by interval.
+``euler``
+    Forward Euler with a fixed step h (``step``), x_{k+1} = x_k + h (A x_k +
+    B u(t_k)), the method the lecture notes animate with: for teaching, not
+    accuracy. The output times must be multiples of h; the result carries its
+    error against the default method at the same times (``stats``,
+    ``message``).
 ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``
     scipy's ``solve_ivp`` with the constant Jacobian (sparse for large
     models), ``rtol``/``atol`` as given, evaluated at the output times.
@@ -53,7 +59,7 @@ from .simulate import InputSignals, propagate_foh, refine_grid
 EXACT_LIMIT = 400
 IVP_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 EXPLICIT = ("RK45", "DOP853")
-METHODS = ("auto", "exact", "rational", "krylov", *IVP_METHODS)
+METHODS = ("auto", "exact", "rational", "krylov", "euler", *IVP_METHODS)
 #: An explicit method is refused when it would need more steps than this for stability.
 EXPLICIT_STEP_LIMIT = 2_000_000
 #: Order of the Padé denominator used by ``rational``.
@@ -146,6 +152,7 @@ def run(
     x0: NDArray[np.float64] | None = None,
     force: bool = False,
     progress: Callable[[float], None] | None = None,
+    step: float | None = None,
 ) -> SimResult:
     """Simulate ``model`` driven by ``signals`` and return its outputs at ``times``.
 
@@ -166,6 +173,8 @@ def run(
         Run explicit methods on stiff models anyway.
     progress : callable, optional
         Called with the fraction done.
+    step : float, optional
+        The fixed step of ``euler`` (s).
     """
     times = np.asarray(times, dtype=float)
     if method == "auto":
@@ -192,6 +201,8 @@ def run(
         return _rational(model, signals, times, rtol, x0, progress, start)
     if method == "krylov":
         return _krylov(model, signals, times, x0, start)
+    if method == "euler":
+        return _euler(model, signals, times, step, x0, start)
     if method in IVP_METHODS:
         return _ivp(model, signals, times, method, rtol, atol, x0, force)
     raise ValueError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
@@ -490,6 +501,90 @@ def _krylov(
     if model.has_input_derivative:
         y = y + signals.derivative(times) @ model.D1.T
     return _finish(times, y, "krylov", "expm_multiply", start)
+
+
+# --- forward Euler (fixed step) -------------------------------------------------------
+
+
+def _euler(
+    model: StateSpaceModel,
+    signals: InputSignals,
+    times: NDArray[np.float64],
+    step: float | None,
+    x0: NDArray[np.float64] | None,
+    start: float,
+) -> SimResult:
+    """x_{k+1} = x_k + h (A x_k + B u(t_k)) at t_k = k h, then compared with the default method."""
+    empty = np.zeros((times.size, model.noutputs))
+    if step is None or not step > 0 or not math.isfinite(step):
+        return SimResult(times, empty, "euler", "", 0.0, "refused", "euler needs a fixed step h > 0 (--step)")
+    index = np.rint(times / step)
+    if np.max(np.abs(index * step - times), initial=0.0) > 1e-9 * step:
+        return SimResult(
+            times,
+            empty,
+            "euler",
+            f"h={step:g}",
+            0.0,
+            "refused",
+            f"output times are not multiples of h = {step:g} s",
+        )
+    steps = int(index[-1]) if times.size else 0
+    grid = np.arange(steps + 1) * step
+    u = signals(grid)
+    A = sp.csr_array(model.A_sparse)
+    B = model.B
+    x = np.zeros(model.nstates) if x0 is None else np.asarray(x0, dtype=float).copy()
+    wanted = index.astype(int)
+    states = np.empty((times.size, model.nstates))
+    slot = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(steps + 1):
+            while slot < wanted.size and wanted[slot] == k:
+                states[slot] = x
+                slot += 1
+            if k < steps:
+                x = x + step * (A @ x + B @ u[k])
+    y = states @ model.C.T + signals(times) @ model.D.T
+    if model.has_input_derivative:
+        y = y + signals.derivative(times) @ model.D1.T
+    result = _finish(times, y, "euler", f"h={step:g}", start, {"steps": float(steps)})
+    if not result.ok:
+        return result
+    return _against_exact(result, model, signals, times, x0, step)
+
+
+def _against_exact(
+    result: SimResult,
+    model: StateSpaceModel,
+    signals: InputSignals,
+    times: NDArray[np.float64],
+    x0: NDArray[np.float64] | None,
+    step: float,
+) -> SimResult:
+    """Euler's error against the default method at the same times: in ``stats`` and the message."""
+    exact = run(model, signals, times, choose_method(model), 1e-10, None, x0)
+    stats = dict(result.stats)
+    if exact.status not in ("ok", "unverified"):
+        note = f"its error could not be measured ({exact.method} {exact.status}: {exact.message})"
+        return replace(result, message=note, stats=stats)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        peaks = np.max(np.abs(exact.outputs), axis=0)
+        gaps = np.abs(result.outputs - exact.outputs)
+        relative = np.max(gaps, axis=0) / np.where(peaks > 0, peaks, 1.0)
+    parts = []
+    for j, name in enumerate(model.outputs):
+        at = float(times[int(np.argmax(gaps[:, j]))]) if times.size else 0.0
+        stats[f"error_vs_exact {name}"] = float(relative[j])
+        parts.append(f"{name} {relative[j]:.2g} (largest at t = {at:.4g} s)")
+    stats["error_vs_exact"] = float(np.max(relative)) if relative.size else 0.0
+    stats["exact_seconds"] = exact.seconds
+    note = f"forward Euler, h = {step:g} s: max |error| / peak against {exact.method} at the same times: "
+    note += ", ".join(parts)
+    rho = spectral_radius(model)
+    if step * rho > 2:
+        note += f"; h·max|λ| = {step * rho:.3g} > 2: the fastest modes are unstable at this step"
+    return replace(result, message=note, stats=stats)
 
 
 # --- scipy solve_ivp ------------------------------------------------------------------
