@@ -93,6 +93,14 @@ class ProgramRun:
     wall: float
 
 
+def _die_with_parent() -> None:
+    """In the child before exec (Linux): be killed when this process dies, even by SIGKILL."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+
+
 def run_program(args: list[str], timeout: float | None, cwd: str | None = None) -> ProgramRun:
     """Run a program with a time limit and measure its own CPU and wall time.
 
@@ -106,31 +114,36 @@ def run_program(args: list[str], timeout: float | None, cwd: str | None = None) 
     args : list of str
         The command line.
     timeout : float or None
-        Seconds of wall time before the child (and its process group) is killed.
+        Seconds of wall time before the child is killed (it is killed too when this
+        process is interrupted or dies).
     cwd : str, optional
         Working directory.
     """
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         try:
-            proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=cwd, start_new_session=True)
+            proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=cwd, preexec_fn=_die_with_parent)
         except OSError as exc:
             return ProgramRun("missing", -1, "", str(exc), 0.0, 0.0)
         deadline = None if timeout is None else start + timeout
-        how, pause = "ok", 0.001
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                break
-            now = time.perf_counter()
-            if deadline is not None and now >= deadline:
+        how, pause, reaped = "ok", 0.001, False
+        try:
+            while True:
+                pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+                if pid:
+                    reaped = True
+                    break
+                now = time.perf_counter()
+                if deadline is not None and now >= deadline:
+                    how = "timeout"
+                    break
+                time.sleep(min(pause, deadline - now) if deadline is not None else pause)
+                pause = min(pause * 2, 0.05)
+        finally:
+            if not reaped:  # out of time, or interrupted (Ctrl-C): the program must not outlive us
                 with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)
+                    os.kill(proc.pid, signal.SIGKILL)
                 pid, status, usage = os.wait4(proc.pid, 0)
-                how = "timeout"
-                break
-            time.sleep(min(pause, deadline - now) if deadline is not None else pause)
-            pause = min(pause * 2, 0.05)
         wall = time.perf_counter() - start
         proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
         out.seek(0)

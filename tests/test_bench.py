@@ -150,3 +150,38 @@ def test_batch_ngspice_is_stopped_at_its_limit() -> None:
     run = run_batch(parsed, probes, slow, 0.5)
     assert run.status == "timeout" and not run.ok
     assert time.perf_counter() - start < 10
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie waiting for its new parent to reap it does not count)."""
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_run_program_child_dies_with_its_parent() -> None:
+    """A bench killed outright (SIGKILL, no cleanup) leaves no ngspice behind."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent
+    script = (
+        f"import sys; sys.path.insert(0, {str(root)!r}); from netlistdyn.processes import run_program; "
+        "run_program(['sleep', '60'], None)"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script])
+    children: list[int] = []
+    deadline = time.perf_counter() + 30
+    while not children and time.perf_counter() < deadline:
+        time.sleep(0.05)
+        with open(f"/proc/{parent.pid}/task/{parent.pid}/children") as handle:
+            children = [int(p) for p in handle.read().split()]
+    assert children, "the program never started"
+    parent.kill()
+    parent.wait()
+    deadline = time.perf_counter() + 10
+    while _alive(children[0]) and time.perf_counter() < deadline:
+        time.sleep(0.05)
+    assert not _alive(children[0])
