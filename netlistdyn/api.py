@@ -356,23 +356,31 @@ def simulation_pipeline(
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     level = None
     how = "the given initial state"
-    if x0 is None:
-        from .initial import around_equilibrium, transient_start
+    if netlist.is_nonlinear:  # the model is the linearisation: integrate the circuit itself
+        from .nltransient import simulate_nonlinear
 
-        start = transient_start(netlist, model, signals(np.array([0.0]))[0])
-        x0, how = start.x0, start.how
-        if warn is not None:
-            for warning in start.warnings:
-                warn(warning)
-        shifted = None if start.uic else around_equilibrium(model, signals, x0)
-        if shifted is not None:  # from the operating point: its constant plus what moves
-            signals, level = shifted
-            x0 = None
-    result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress, step)
-    if level is not None:
-        from dataclasses import replace
+        u0 = signals(np.array([0.0]))[0]
+        result, how = simulate_nonlinear(
+            netlist, model.outputs, times, method, rtol, x0, progress, model.states, u0
+        )
+    else:
+        if x0 is None:
+            from .initial import around_equilibrium, transient_start
 
-        result = replace(result, outputs=result.outputs + level[None, :])
+            start = transient_start(netlist, model, signals(np.array([0.0]))[0])
+            x0, how = start.x0, start.how
+            if warn is not None:
+                for warning in start.warnings:
+                    warn(warning)
+            shifted = None if start.uic else around_equilibrium(model, signals, x0)
+            if shifted is not None:  # from the operating point: its constant plus what moves
+                signals, level = shifted
+                x0 = None
+        result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress, step)
+        if level is not None:
+            from dataclasses import replace
+
+            result = replace(result, outputs=result.outputs + level[None, :])
     return Simulation(
         title=netlist.title,
         time=result.time,

@@ -289,11 +289,25 @@ tstop_option = click.option(
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar on stderr.")
 
 
-def load_and_compile(netlist: str, params: tuple[str, ...], outputs: list[str] | None) -> tuple[Any, Any]:
-    """Parse with ``--param`` overrides, compile, print the warnings; (netlist, model)."""
+def load_and_compile(
+    netlist: str, params: tuple[str, ...], outputs: list[str] | None, at: tuple[str, ...] = ()
+) -> tuple[Any, Any]:
+    """Parse with ``--param`` overrides, compile, print the warnings; (netlist, model).
+
+    A nonlinear netlist is replaced by its linearisation at the operating
+    point (``--at`` values moved), which is the netlist returned.
+    """
     from .formulate import compile_netlist
 
     parsed = parse_netlist(netlist, parse_param_overrides(params))
+    if parsed.is_nonlinear:
+        from .nonlinear import linearised
+
+        parsed, outputs = linearised(parsed, outputs, parse_param_overrides(at, "--at"))
+    elif at:
+        raise UsageError(
+            "--at is for nonlinear netlists (this one is linear: its model is the same everywhere)"
+        )
     model = compile_netlist(parsed, outputs)
     _print_warnings(model.info.warnings)
     return parsed, model
@@ -383,6 +397,13 @@ out_option = click.option(
 )
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @coordinates_option
+@click.option(
+    "--at",
+    "at",
+    multiple=True,
+    metavar="SOURCE=VALUE",
+    help="Nonlinear netlists: linearise at the operating point with this source at VALUE. Repeatable.",
+)
 @quiet_option
 @out_option
 def analyze(
@@ -399,6 +420,7 @@ def analyze(
     bode: str | None,
     save: str | None,
     coordinates: str | None,
+    at: tuple[str, ...],
     quiet: bool,
     out: str | None,
 ) -> None:
@@ -447,7 +469,7 @@ def analyze(
             parsed, prepared = load_prepared(netlist, params, outputs, coordinates)
             model, change = prepared.model, prepared.change
         else:
-            parsed, model = load_and_compile(netlist, params, list(outputs) or None)
+            parsed, model = load_and_compile(netlist, params, list(outputs) or None, at)
         bar.update()
         notes: list[str] = []
         data_error = 0.0
@@ -458,7 +480,7 @@ def analyze(
             from .symbolic import symbolic_model
 
             keep = None if symbols is None else [n.strip() for n in symbols.split(",") if n.strip()]
-            sym = symbolic_model(parsed, list(outputs) or None, keep)
+            sym = symbolic_model(parsed, list(outputs) or list(model.outputs), keep)
         if minimal or control_report:
             from . import control
 
@@ -526,6 +548,39 @@ def analyze(
                 text += symbolic_text(sym)
             text += "".join(f"note: {n}\n" for n in notes)
             emit(text, out)
+        return 0
+
+    run_guarded(body)
+
+
+@main.command()
+@click.argument("netlist", type=click.Path(exists=True, dir_okay=False, allow_dash=True))
+@param_option
+@click.option(
+    "--at",
+    "at",
+    multiple=True,
+    metavar="SOURCE=VALUE",
+    help="Solve with this independent source at VALUE instead of its DC value. Repeatable.",
+)
+@format_option
+@out_option
+def op(netlist: str, params: tuple[str, ...], at: tuple[str, ...], fmt: str, out: str | None) -> None:
+    """DC operating point of NETLIST (capacitors open, inductors short): Newton with
+    junction limiting, then gmin stepping, then source stepping, as SPICE does."""
+
+    def body() -> int:
+        check_outputs(out=out)
+        from .nonlinear import operating_point, point_dict, point_text
+        from .report import to_json
+
+        parsed = parse_netlist(netlist, parse_param_overrides(params))
+        _print_warnings(parsed.warnings)
+        point = operating_point(parsed, parse_param_overrides(at, "--at"))
+        if fmt == "json":
+            emit(to_json({"netlist": netlist, "operating_point": point_dict(point, parsed)}), out)
+        else:
+            emit(point_text(point, parsed), out)
         return 0
 
     run_guarded(body)

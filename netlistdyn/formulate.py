@@ -133,7 +133,13 @@ def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formula
     that compiles gives the circuit's true order (the reduction is exact), a
     tree with too many states meets a singular capacitance/inductance
     matrix, one with too few meets derivatives it cannot eliminate.
+    A nonlinear netlist (diodes, nonlinear behavioural sources) is compiled
+    as its linearisation at the DC operating point (:mod:`netlistdyn.nonlinear`).
     """
+    if netlist.is_nonlinear:
+        from .nonlinear import linearised
+
+        netlist, outputs = linearised(netlist, outputs)
     probes = (
         tuple(parse_probe(text, netlist) for text in outputs) if outputs else tuple(default_probes(netlist))
     )

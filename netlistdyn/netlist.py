@@ -30,6 +30,50 @@ class Kind(enum.Enum):
     CCVS = "H"
     COUPLING = "K"
     TRANSFORMER = "TRANSFORMER"  # ideal two-port: gears and (mobility analogy) motors
+    DIODE = "D"
+    BVOLTAGE = "BV"  # nonlinear behavioural voltage source (B V=, E value=)
+    BCURRENT = "BI"  # nonlinear behavioural current source (B I=, G value=)
+
+
+#: Kinds that make a netlist nonlinear (compiled through :mod:`netlistdyn.nonlinear`).
+NONLINEAR_KINDS = frozenset({Kind.DIODE, Kind.BVOLTAGE, Kind.BCURRENT})
+
+
+@dataclass(frozen=True, slots=True)
+class DiodeModel:
+    """Parameters of a ``.model NAME D(...)`` card (ngspice's level-1 diode).
+
+    Attributes
+    ----------
+    name : str
+        Model name (lower case).
+    IS : float
+        Saturation current (A).
+    N : float
+        Emission coefficient.
+    RS : float
+        Ohmic series resistance (Ω).
+    CJO : float
+        Zero-bias junction capacitance (F).
+    VJ : float
+        Junction potential (V).
+    M : float
+        Grading coefficient.
+    TT : float
+        Transit time (s): diffusion charge TT·I.
+    FC : float
+        Forward-bias depletion capacitance coefficient.
+    """
+
+    name: str
+    IS: float = 1e-14
+    N: float = 1.0
+    RS: float = 0.0
+    CJO: float = 0.0
+    VJ: float = 1.0
+    M: float = 0.5
+    TT: float = 0.0
+    FC: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,8 +135,10 @@ class Element:
     expression : str, optional
         For elements compiled from a behavioural source (``B``, or ``E``/``G``
         with ``value=``/``vol=``/``cur=``): the source's expression text, in
-        which this element is one linear term. The place where nonlinear
-        sources will carry their expression.
+        which this element is one linear term; for ``BVOLTAGE``/``BCURRENT``
+        the whole (nonlinear) expression.
+    diode : DiodeModel, optional
+        For a ``DIODE``: its model (``value`` is then the area factor).
     """
 
     kind: Kind
@@ -108,6 +154,7 @@ class Element:
     rod: RodSpec | None = None
     ic: float | None = None
     expression: str | None = None
+    diode: DiodeModel | None = None
 
     @property
     def key(self) -> str:
@@ -240,6 +287,11 @@ class Netlist:
                 raise NetlistError(f".step: more than {limit} cases", step.loc)
             cases = [{**case, step.param: value} for case in cases for value in step.values]
         return cases if self.steps else []
+
+    @property
+    def is_nonlinear(self) -> bool:
+        """True when some element is a diode or a nonlinear behavioural source."""
+        return any(e.kind in NONLINEAR_KINDS for e in self.elements)
 
     def element(self, key: str) -> Element:
         """The element with this (case-insensitive) name."""

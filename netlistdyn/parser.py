@@ -34,7 +34,17 @@ from pathlib import Path
 from .errors import NetlistError, SourceLocation, UsageError
 from .expressions import Expression, ExpressionError, NonlinearError, evaluate, linear_form, parse
 from .mechanics import KEYWORDS, build_mechanical, resolve_rods
-from .netlist import GROUND, Diagnostic, Element, InitialCondition, Kind, Netlist, StepSpec, TranSpec
+from .netlist import (
+    GROUND,
+    Diagnostic,
+    DiodeModel,
+    Element,
+    InitialCondition,
+    Kind,
+    Netlist,
+    StepSpec,
+    TranSpec,
+)
 from .values import read_number
 from .waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
 
@@ -1222,10 +1232,8 @@ def _build_behavioural(line: Line, kind_letter: str, mode: str, expr: str, ctx: 
     plus, minus = _node(fields[1]), _node(fields[2])
     try:
         form = linear_form(expr, ctx.values.params, ctx.values.functions)
-    except NonlinearError as exc:
-        raise NetlistError(
-            f"{name}: nonlinear expression ({exc}); netlistdyn compiles linear behavioural sources only", loc
-        ) from None
+    except NonlinearError:
+        return [_nonlinear_behavioural(name, plus, minus, mode, expr, ctx, loc)]
     except ExpressionError as exc:
         raise NetlistError(f"{name}: {exc}", loc) from None
     terms: list[tuple[Kind, float, tuple[str, str] | None, str | None]] = []
@@ -1288,6 +1296,73 @@ def _build_behavioural(line: Line, kind_letter: str, mode: str, expr: str, ctx: 
     return out
 
 
+def _nonlinear_behavioural(
+    name: str, plus: str, minus: str, mode: str, expr: str, ctx: _Context, loc: SourceLocation
+) -> Element:
+    """A behavioural source whose expression is not linear: one element with the folded expression."""
+    from .devices import Behaviour, fold
+
+    try:
+        folded = fold(expr, ctx.values.params, ctx.values.functions)
+        Behaviour.from_text(folded)
+    except ExpressionError as exc:
+        raise NetlistError(f"{name}: {exc}", loc) from None
+    kind = Kind.BVOLTAGE if mode == "v" else Kind.BCURRENT
+    return Element(kind, name, (plus, minus), 0.0, loc, expression=folded)
+
+
+def _build_diode(line: Line, ctx: _Context) -> Element:
+    """``Dname anode cathode model [area] [area=] [m=]`` with a ``.model NAME D(...)``."""
+    from .devices import DIODE_NEUTRAL, DIODE_PARAMS
+
+    fields = _fields(line)
+    name, loc = fields[0], line.loc
+    if len(fields) < 4:
+        raise NetlistError(f"{name}: expected {name} anode cathode model [area]", loc)
+    nodes = (_node(fields[1]), _node(fields[2]))
+    positional, keywords = _split_keywords(fields, 4, name, loc)
+    mname = fields[3].lower()
+    if mname not in ctx.models:
+        raise NetlistError(f"{name}: no .model {fields[3]}", loc)
+    mtype, mparams, mloc = ctx.models[mname]
+    if mtype != "d":
+        raise NetlistError(f"{name}: model {fields[3]} is a {mtype.upper()} model, not D", loc)
+    values = ctx.values
+    area = 1.0
+    if positional:
+        if len(positional) > 1 or positional[0].lower() == "off":
+            raise NetlistError(f"{name}: unexpected field {positional[-1]!r} (expected an area)", loc)
+        area = values.number(positional[0], loc, f"{name} area")
+    if "area" in keywords:
+        area = values.number(keywords.pop("area"), loc, f"{name} area")
+    if "m" in keywords:
+        area *= values.number(keywords.pop("m"), loc, f"{name} m")
+    if keywords:
+        raise NetlistError(f"{name}: unsupported parameter {next(iter(keywords))}= on a diode", loc)
+    if not area > 0:
+        raise NetlistError(f"{name}: the area must be positive, got {area:g}", loc)
+    if (ctx.temp is not None and ctx.temp != 27.0) or ctx.tnom != 27.0:
+        raise NetlistError(f"{name}: diodes are modelled at 27 °C only (TEMP = TNOM = 27)", loc)
+    given: dict[str, float] = {}
+    for key, text in mparams.items():
+        what = f".model {mname} {key.upper()}"
+        if key in DIODE_PARAMS:
+            given[DIODE_PARAMS[key]] = values.number(text, mloc, what)
+        elif key in DIODE_NEUTRAL:
+            if values.number(text, mloc, what) != DIODE_NEUTRAL[key]:
+                raise NetlistError(f"{what}: only the default {DIODE_NEUTRAL[key]:g} is supported", mloc)
+        else:
+            raise NetlistError(
+                f"{what}: parameter not supported (netlistdyn reads IS N RS CJO VJ M TT FC)", mloc
+            )
+    model = DiodeModel(mname, **given)
+    if not (model.IS > 0 and model.N > 0 and model.RS >= 0 and model.CJO >= 0 and model.TT >= 0):
+        raise NetlistError(f".model {mname}: IS and N must be positive, RS, CJO and TT not negative", mloc)
+    if model.CJO > 0 and not (model.VJ > 0 and 0 < model.M < 1 and 0 <= model.FC < 1):
+        raise NetlistError(f".model {mname}: needs VJ > 0, 0 < M < 1 and 0 <= FC < 1", mloc)
+    return Element(Kind.DIODE, name, nodes, area, loc, diode=model)
+
+
 def _build_element(line: Line, ctx: _Context) -> list[Element]:
     word = line.text.split(None, 1)[0]
     letter = word[0].lower()
@@ -1296,6 +1371,16 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
     name = word
     if word.lower() in KEYWORDS:
         fields = _fields(line)
+        if word.lower() in ("force", "torque") and len(fields) == 5 and _is_expr(fields[4]):
+            from .devices import mechanical_expression
+
+            if mechanical_expression(fields[4]):
+                # a force of the motion, FORCE name a b {expr}: pushes a (current from b into a)
+                a, b = _node(fields[2]), _node(fields[3])
+                element = _nonlinear_behavioural(
+                    f"{word.upper()} {fields[1]}", b, a, "i", _unwrap(fields[4]), ctx, loc
+                )
+                return [replace(element, name=fields[1], keyword=word.upper())]
         return [
             build_mechanical(
                 word.lower(),
@@ -1391,6 +1476,8 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
             Element(Kind.COUPLING, label, (), k, loc, coupled=pair)
             for label, pair in zip(labels, pairs, strict=True)
         ]
+    if letter == "d":
+        return [_build_diode(line, ctx)]
     what = NONLINEAR_DEVICES.get(letter)
     if what:
         raise NetlistError(
@@ -1869,8 +1956,21 @@ def _rename(element: Element, prefix: str, port_map: dict[str, str], globals_: f
     def ref(key: str | None) -> str | None:
         return None if key is None else f"{low}.{key}"
 
+    expression = element.expression
+    if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT) and expression is not None:
+        from .devices import DISPLACEMENT, fold
+
+        def scoped(kind: str, n: str) -> str:
+            if kind == "v":
+                return node(n)
+            if n.startswith(DISPLACEMENT):
+                return DISPLACEMENT + node(n[len(DISPLACEMENT) :])
+            return f"{low}.{n}"
+
+        expression = fold(expression, {}, {}, scoped)
     return replace(
         element,
+        expression=expression,
         name=f"{prefix}.{element.name}",
         nodes=tuple(node(n) for n in element.nodes),
         control_nodes=None

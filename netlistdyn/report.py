@@ -279,7 +279,11 @@ def validation_text(report: Any, title: str) -> str:
     else:
         out.append(
             f"ngspice ran in {spice.seconds:.3f} s ({report.time.size} time points); "
-            f"model (exact first-order hold at those points) in {report.model_seconds:.3f} s"
+            + (
+                f"model (nonlinear transient at those points) in {report.model_seconds:.3f} s"
+                if any("nonlinear transient" in n for n in report.notes)
+                else f"model (exact first-order hold at those points) in {report.model_seconds:.3f} s"
+            )
         )
         out.append("")
         width = max(8, *(len(c.name) for c in report.comparisons)) if report.comparisons else 8

@@ -17,6 +17,7 @@ import contextlib
 import importlib.util
 import logging
 import os
+import re
 import time
 from collections.abc import Sequence
 from ctypes.util import find_library
@@ -158,6 +159,9 @@ _LETTER = {
     Kind.CCVS: "H",
     Kind.COUPLING: "K",
     Kind.TRANSFORMER: "E",
+    Kind.DIODE: "D",
+    Kind.BVOLTAGE: "B",
+    Kind.BCURRENT: "B",
 }
 
 
@@ -220,6 +224,11 @@ def build_circuit(
             )
             circuit.C(f"int_{node}", node, 0, 1)
             circuit.R(f"int_{node}", node, 0, 1e30)  # a DC path; time constant 1e30 s
+    for node in _displaced_nodes(netlist):  # x(n) read by an expression: the same integrator
+        name = _displacement_node(node)
+        circuit.VCCS(f"int_{name}", 0, name, _node(node), 0, transconductance=1)
+        circuit.C(f"int_{name}", name, 0, 1)
+        circuit.R(f"int_{name}", name, 0, 1e30)
     for element in netlist.elements:
         pos, neg = (*element.nodes, "", "")[:2]
         if element.key in sensed:
@@ -232,6 +241,22 @@ def build_circuit(
 
 def _node(name: str) -> Any:
     return 0 if name == GROUND else name
+
+
+def _displaced_nodes(netlist: Netlist) -> list[str]:
+    """Nodes whose displacement x(n) a behavioural expression reads, in order of appearance."""
+    from .devices import DISPLACEMENT
+
+    found: dict[str, None] = {}
+    for element in netlist.elements:
+        if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT) and element.expression:
+            for match in re.finditer(r"i\(" + re.escape(DISPLACEMENT) + r"([^)]+)\)", element.expression):
+                found.setdefault(match.group(1), None)
+    return list(found)
+
+
+def _displacement_node(node: str) -> str:
+    return "xdisp_" + "".join(ch if ch.isalnum() else "_" for ch in node)
 
 
 def _integrator_node(probe: Probe) -> str:
@@ -294,6 +319,40 @@ def _add_element(
         # PySpice prefixes the inductor names with "L" itself.
         first, second = (spice_name(netlist.element(k))[1:] for k in element.coupled)
         circuit.K(name, first, second, element.value)
+    elif kind is Kind.DIODE:
+        model = element.diode
+        assert model is not None
+        mname = f"dmod_{name}".replace(".", "_")
+        circuit.model(
+            mname,
+            "D",
+            IS=model.IS,
+            N=model.N,
+            RS=model.RS,
+            CJO=model.CJO,
+            VJ=model.VJ,
+            M=model.M,
+            TT=model.TT,
+            FC=model.FC,
+        )
+        circuit.D(name, p, n, model=mname, area=element.value)
+    elif kind in (Kind.BVOLTAGE, Kind.BCURRENT):
+        from .devices import DISPLACEMENT
+
+        text = element.expression or ""
+        text = re.sub(
+            r"i\(" + re.escape(DISPLACEMENT) + r"([^)]+)\)",
+            lambda m: f"v({_displacement_node(m.group(1))})",
+            text,
+        )
+        text = re.sub(r"i\(([^)]+)\)", lambda m: f"i({spice_name(netlist.element(m.group(1)))})", text)
+        text = re.sub(
+            r"v\(([^)]+)\)",
+            lambda m: "v(" + ",".join("0" if a == GROUND else a for a in m.group(1).split(",")) + ")",
+            text,
+        )
+        expression = {("voltage_expression" if kind is Kind.BVOLTAGE else "current_expression"): text}
+        circuit.BehavioralSource(name, p, n, **expression)
     else:
         raise NotImplementedError(f"{element.label}: no ngspice translation for {kind.name}")
 

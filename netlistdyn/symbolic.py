@@ -146,6 +146,10 @@ def symbolic_model(
     NetlistError
         For circuits the numeric compiler refuses.
     """
+    if netlist.is_nonlinear:  # the symbols of its linearisation at the operating point
+        from .nonlinear import linearised
+
+        netlist, outputs = linearised(netlist, outputs)
     form = formulate(netlist, outputs)
     if form.model.nstates > SYMBOLIC_STATE_LIMIT:
         raise UsageError(

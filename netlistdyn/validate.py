@@ -258,18 +258,26 @@ def compare(
     notes: list[str] = []
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)  # refuses too many breakpoints first
     u0 = signals(np.array([0.0]))[0]
-    initial = transient_start(netlist, model, u0)  # ngspice is told the same
-    # At rest with every source 0 at t = 0 the operating point is zero: ngspice starts there with
-    # UIC too, without solving for it (a mechanical analog's free mass makes that singular).
-    at_rest = (
-        not np.any(initial.x0)
-        and not np.any(u0)
-        and not netlist.initial_conditions
-        and all(e.ic is None for e in netlist.elements)  # IC= would count for ngspice under UIC
-    )
-    settings = replace(settings, uic=initial.uic or at_rest)
-    if not at_rest:
-        notes.append(f"start: {initial.how}")
+    nonlinear_x0 = None
+    if netlist.is_nonlinear:  # where the nonlinear circuit starts (its own operating point)
+        from .nltransient import nonlinear_start
+
+        nonlinear_x0, uic, how = nonlinear_start(netlist, u0)
+        settings = replace(settings, uic=uic)
+        notes.append(f"start: {how}")
+    else:
+        initial = transient_start(netlist, model, u0)  # ngspice is told the same
+        # At rest with every source 0 at t = 0 the operating point is zero: ngspice starts there with
+        # UIC too, without solving for it (a mechanical analog's free mass makes that singular).
+        at_rest = (
+            not np.any(initial.x0)
+            and not np.any(u0)
+            and not netlist.initial_conditions
+            and all(e.ic is None for e in netlist.elements)  # IC= would count for ngspice under UIC
+        )
+        settings = replace(settings, uic=initial.uic or at_rest)
+        if not at_rest:
+            notes.append(f"start: {initial.how}")
     run = run_transient(netlist, probes, settings, timeout)
     for reltol in VALIDATION_RELTOLS:
         if run.ok or reltol <= settings.reltol or run.status in ("timeout", "unusable"):
@@ -291,17 +299,28 @@ def compare(
             (*notes, f"ngspice failed: {run.message}"),
         )
     start = time.perf_counter()
-    if initial.uic:
-        notes.extend(_impulse_notes(model, signals))
-    shifted = None if initial.uic else around_equilibrium(model, signals, initial.x0)
-    if shifted is None:
-        foh = propagate_foh(model, signals, run.time, initial.x0)
-        ours = foh.outputs
-    else:  # from the operating point: its constant plus the response to what moves
-        foh = propagate_foh(model, shifted[0], run.time)
-        ours = foh.outputs + shifted[1][None, :]
-    if not foh.verified:
-        notes.append(f"the model's own result is not vouched for: {foh.message}")
+    if netlist.is_nonlinear:  # the circuit itself, integrated at ngspice's times (not the linearisation)
+        from .nltransient import NONLINEAR_VALIDATE_RTOL
+        from .nltransient import run as run_nonlinear
+
+        names = [p.name for p in probes]
+        ours = run_nonlinear(netlist, names, run.time, NONLINEAR_VALIDATE_RTOL, nonlinear_x0).outputs
+        notes.append(
+            "nonlinear netlist: netlistdyn's side is its nonlinear transient "
+            f"(BDF, rtol {NONLINEAR_VALIDATE_RTOL:g})"
+        )
+    else:
+        if initial.uic:
+            notes.extend(_impulse_notes(model, signals))
+        shifted = None if initial.uic else around_equilibrium(model, signals, initial.x0)
+        if shifted is None:
+            foh = propagate_foh(model, signals, run.time, initial.x0)
+            ours = foh.outputs
+        else:  # from the operating point: its constant plus the response to what moves
+            foh = propagate_foh(model, shifted[0], run.time)
+            ours = foh.outputs + shifted[1][None, :]
+        if not foh.verified:
+            notes.append(f"the model's own result is not vouched for: {foh.message}")
     model_seconds = time.perf_counter() - start
     comparisons = []
     peaks = {
@@ -427,6 +446,8 @@ def check_original(
     """
     if any(e.keyword for e in netlist.elements):
         return OriginalCheck(False, message="original file not run by ngspice: it has mechanical elements")
+    if netlist.is_nonlinear:  # op and ac of a nonlinear circuit depend on the source values this check sets
+        return OriginalCheck(False, message="original file not run by ngspice: the netlist is nonlinear")
     inputs = list(model.inputs)
     if not inputs:
         return OriginalCheck(False, message="original file not run by ngspice: no independent source")

@@ -135,7 +135,7 @@ PROBES: dict[str, tuple[bytes, str]] = {
         b"k\n.save all\n.probe alli\nV1 in GND DC 0 AC 1\nR1 in a 1k\nC1 a GND 1u\n",
         "agree",
     ),
-    "diode": (b"d\nV1 in 0 1\nR1 in a 1k\nD1 a 0 dmod\n.model dmod d\n", "refused"),
+    "bjt": (b"q\nV1 in 0 1\nR1 in a 1k\nQ1 a a 0 qmod\n.model qmod npn\n", "refused"),
     # ngspice's numparam reads an unbraced expression after key= (no blanks), nowhere else.
     "keyword_unbraced_expression": (
         b"k\n.param va=400 vb=600\nV1 in 0 1\nR1 in a R=va+vb\nC1 a 0 C=va*vb*1n\n",

@@ -23,7 +23,7 @@ BAD_NETLISTS = {
     "unknown sense source": ("V1 a 0 1\nR1 a 0 1\nF1 a 0 Vx 2\n", 4, ["F1", "'vx'", "not a voltage source"]),
     "unknown coupled inductor": ("V1 a 0 1\nL1 a 0 1\nK1 L1 L9 0.5\n", 4, ["K1", "'l9'", "not an inductor"]),
     "unknown control node": ("V1 a 0 1\nR1 a 0 1\nE1 b 0 zz 0 2\nR2 b 0 1\n", 4, ["E1", "'zz'"]),
-    "unsupported element": ("V1 a 0 1\nD1 a 0 dmod\n", 3, ["D1", "diode", "not supported"]),
+    "unsupported element": ("V1 a 0 1\nQ1 a 0 0 qmod\n", 3, ["Q1", "bipolar", "not supported"]),
     "unknown letter": ("V1 a 0 1\nYQ1 a 0 1\n", 3, ["YQ1"]),
     "unsupported directive": ("V1 a 0 1\nR1 a 0 1\n.data foo\n", 4, ["unsupported directive .data"]),
     "missing library": ("V1 a 0 1\nR1 a 0 1\n.lib foo\n", 4, [".lib", "foo"]),
@@ -33,7 +33,11 @@ BAD_NETLISTS = {
     "extra field": ("V1 a 0 1\nR1 a 0 1k 2k\n", 3, ["R1", "unexpected field"]),
     "duplicate name": ("V1 a 0 1\nR1 a 0 1\nr1 a 0 2\n", 4, ["r1", "duplicate"]),
     "perfect coupling": ("V1 a 0 1\nL1 a 0 1\nL2 a 0 1\nK1 L1 L2 1\n", 5, ["K1", "ideal transformer"]),
-    "nonlinear source": ("V1 a 0 1\nR1 a 0 1\nE1 b 0 VALUE={v(a)*v(a)}\n", 4, ["E1", "nonlinear", "product"]),
+    "unsupported source": (
+        "V1 a 0 1\nR1 a 0 1\nE1 b 0 TABLE {v(a)} (0,0) (1,1)\n",
+        4,
+        ["E1", "TABLE", "not supported"],
+    ),
     "bad continuation": ("+ R1 a 0 1\n", 2, ["continuation"]),
     "pwl odd": ("V1 a 0 PWL(0 0 1)\nR1 a 0 1\n", 2, ["V1", "PWL"]),
 }

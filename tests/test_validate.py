@@ -68,6 +68,8 @@ CASES = [
     ("servo_shaft.cir", ["--param", "K=50", "--output", "v(shaft)", "--output", "v(load)"]),
     ("gear_train.cir", ["--output", "v(load)", "--output", "i(L1)", "--output", "i(b)"]),
     ("balanced.cir", ["--output", "v(a)", "--output", "v(b,c)", "--output", "i(R2)"]),
+    ("pendulum.cir", ["--output", "v(bob)", "--tstop", "1"]),
+    ("oblique_blocks.cir", ["--output", "v(b1)", "--output", "v(b2)", "--tstop", "0.3"]),
 ]
 
 

@@ -1,0 +1,617 @@
+"""Nonlinear device equations: behavioural expressions and the SPICE diode.
+
+Two kinds of nonlinear element reach :mod:`netlistdyn.nonlinear`:
+
+- **Behavioural sources** (``B``, ``E``/``G`` with ``value=``): their
+  expression is *folded* at parse time (every ``.param`` replaced by its
+  number, every ``.func`` expanded), so that the element carries a
+  self-contained text in ``v(...)``, ``i(...)`` and ``time`` only.
+  :class:`Behaviour` evaluates it together with its exact partial
+  derivatives (forward-mode automatic differentiation over an explicit
+  stack, no recursion), with ngspice 39's B-source semantics:
+  ``x**y``, ``x^y`` and ``pow(x, y)`` are ``|x|^y``, ``pwr(x, y)`` is
+  ``sgn(x)·|x|^y`` (measured with ``ngspice -b``), ``u`` and ``uramp`` are
+  the unit step and ramp.
+- **Diodes** (``D``): ngspice's level-1 junction, :func:`diode_current` and
+  :func:`diode_charge`, including the ``gmin`` conductance ngspice puts in
+  parallel with every junction.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .expressions import CONSTANTS, Expression, ExpressionError, parse
+
+#: Boltzmann's constant over the electron charge (V/K), as ngspice 39's const.h.
+K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
+#: ngspice's default temperature (K), 27 °C.
+REFTEMP = 300.15
+#: Conductance ngspice places across every junction (S), ``.options gmin``.
+GMIN = 1e-12
+
+Node = tuple
+
+
+def _sgn(x: float) -> float:
+    return float((x > 0) - (x < 0))
+
+
+def _safe_exp(x: float) -> float:
+    # An overflow is an infinite value; Newton's line search then backs off.
+    return math.exp(x) if x < 709.0 else math.inf
+
+
+def _power(x: float, y: float) -> tuple[float, float, float]:
+    ax = abs(x)
+    if ax == 0.0:
+        if y < 0:
+            raise ExpressionError("0 raised to a negative power")
+        value = 0.0 if y > 0 else 1.0
+        return value, (1.0 if y == 1 else 0.0), 0.0
+    value = ax**y
+    return value, y * ax ** (y - 1) * _sgn(x), value * math.log(ax)
+
+
+#: name -> (arity range, function returning (value, partials)).
+_Func = Callable[..., tuple[float, tuple[float, ...]]]
+
+
+def _unary(f: Callable[[float], float], df: Callable[[float], float]) -> _Func:
+    return lambda x: (f(x), (df(x),))
+
+
+def _checked(name: str, ok: Callable[[float], bool], f: Callable[[float], float]) -> Callable[[float], float]:
+    def inner(x: float) -> float:
+        if not ok(x):
+            raise ExpressionError(f"{name}({x:g}) is outside its domain")
+        return f(x)
+
+    return inner
+
+
+def _minmax(pick: Callable[..., float]) -> _Func:
+    def inner(*args: float) -> tuple[float, tuple[float, ...]]:
+        best = pick(args)
+        k = args.index(best)
+        return best, tuple(1.0 if j == k else 0.0 for j in range(len(args)))
+
+    return inner
+
+
+def _pow_fn(x: float, y: float) -> tuple[float, tuple[float, ...]]:
+    value, dx, dy = _power(x, y)
+    return value, (dx, dy)
+
+
+def _pwr_fn(x: float, y: float) -> tuple[float, tuple[float, ...]]:
+    value, dx, dy = _power(x, y)
+    s = _sgn(x) if x != 0 else 1.0
+    return s * value, (s * dx, s * dy)
+
+
+FUNCTIONS: dict[str, tuple[int, int, _Func]] = {
+    "sqrt": (1, 1, _unary(_checked("sqrt", lambda x: x >= 0, math.sqrt), lambda x: 0.5 / math.sqrt(x))),
+    "exp": (1, 1, _unary(_safe_exp, _safe_exp)),
+    "log": (1, 1, _unary(_checked("log", lambda x: x > 0, math.log), lambda x: 1.0 / x)),
+    "ln": (1, 1, _unary(_checked("ln", lambda x: x > 0, math.log), lambda x: 1.0 / x)),
+    "log10": (
+        1,
+        1,
+        _unary(_checked("log10", lambda x: x > 0, math.log10), lambda x: 1.0 / (x * math.log(10.0))),
+    ),
+    "sin": (1, 1, _unary(math.sin, math.cos)),
+    "cos": (1, 1, _unary(math.cos, lambda x: -math.sin(x))),
+    "tan": (1, 1, _unary(math.tan, lambda x: 1.0 / math.cos(x) ** 2)),
+    "asin": (
+        1,
+        1,
+        _unary(_checked("asin", lambda x: -1 <= x <= 1, math.asin), lambda x: 1 / math.sqrt(1 - x * x)),
+    ),
+    "acos": (
+        1,
+        1,
+        _unary(_checked("acos", lambda x: -1 <= x <= 1, math.acos), lambda x: -1 / math.sqrt(1 - x * x)),
+    ),
+    "atan": (1, 1, _unary(math.atan, lambda x: 1.0 / (1.0 + x * x))),
+    "sinh": (1, 1, _unary(math.sinh, math.cosh)),
+    "cosh": (1, 1, _unary(math.cosh, math.sinh)),
+    "tanh": (1, 1, _unary(math.tanh, lambda x: 1.0 - math.tanh(x) ** 2)),
+    "asinh": (1, 1, _unary(math.asinh, lambda x: 1.0 / math.sqrt(x * x + 1.0))),
+    "acosh": (
+        1,
+        1,
+        _unary(_checked("acosh", lambda x: x >= 1, math.acosh), lambda x: 1.0 / math.sqrt(x * x - 1.0)),
+    ),
+    "atanh": (
+        1,
+        1,
+        _unary(_checked("atanh", lambda x: -1 < x < 1, math.atanh), lambda x: 1.0 / (1.0 - x * x)),
+    ),
+    "abs": (1, 1, _unary(abs, _sgn)),
+    "sgn": (1, 1, _unary(_sgn, lambda x: 0.0)),
+    "u": (1, 1, _unary(lambda x: float(x > 0), lambda x: 0.0)),
+    "uramp": (1, 1, _unary(lambda x: max(x, 0.0), lambda x: float(x > 0))),
+    "int": (1, 1, _unary(lambda x: float(math.trunc(x)), lambda x: 0.0)),
+    "nint": (1, 1, _unary(lambda x: float(round(x)), lambda x: 0.0)),
+    "floor": (1, 1, _unary(lambda x: float(math.floor(x)), lambda x: 0.0)),
+    "ceil": (1, 1, _unary(lambda x: float(math.ceil(x)), lambda x: 0.0)),
+    "min": (1, 64, _minmax(min)),
+    "max": (1, 64, _minmax(max)),
+    "pow": (2, 2, _pow_fn),
+    "pwr": (2, 2, _pwr_fn),
+}
+
+#: Names an expression may use besides numbers, refs and functions.
+TIME = "time"
+
+
+# ----------------------------------------------------------------------- folding
+
+
+def fold(
+    text: str,
+    params: Mapping[str, float],
+    functions: Mapping[str, tuple[tuple[str, ...], Expression]],
+    rename: Callable[[str, str], str] | None = None,
+) -> str:
+    """The expression with parameters replaced by numbers and ``.func`` calls expanded.
+
+    Parameters
+    ----------
+    text : str
+        Expression without braces.
+    params : Mapping[str, float]
+        Parameter values in scope (lower-case names).
+    functions : Mapping
+        User functions in scope: name → (formal names, body).
+    rename : callable, optional
+        ``rename(kind, name)`` maps the argument of each ``v()`` (kind
+        ``"v"``) and ``i()`` (kind ``"i"``): a subcircuit's scope.
+
+    Returns
+    -------
+    str
+        A fully parenthesised text in numbers, ``v()``, ``i()``, ``time`` and
+        the functions of :data:`FUNCTIONS` (re-parsed by :class:`Behaviour`).
+
+    Raises
+    ------
+    ExpressionError
+        Unknown parameter or function, wrong argument count, a ``.func`` that
+        calls itself.
+    """
+    tree = parse(displacement_refs(text)).tree
+    # Explicit stack: (node, local bindings, depth, state); results on `out`.
+    out: list[str] = []
+    stack: list[tuple[Node, Mapping[str, str], int, int]] = [(tree, {}, 0, 0)]
+    while stack:
+        node, local, depth, state = stack.pop()
+        tag = node[0]
+        if tag == "num":
+            out.append(repr(float(node[1])))
+        elif tag == "name":
+            name = str(node[1])
+            if name in local:
+                out.append(local[name])
+            elif name in params:
+                out.append(repr(float(params[name])))
+            elif name in CONSTANTS:
+                out.append(repr(CONSTANTS[name]))
+            elif name == TIME:
+                out.append(TIME)
+            else:
+                raise ExpressionError(f"unknown parameter {name!r}")
+        elif tag == "ref":
+            args = node[2] if rename is None else tuple(rename(str(node[1]), a) for a in node[2])
+            out.append(f"{node[1]}({','.join(args)})")
+        elif tag in ("neg", "pos", "not"):
+            if state == 0:
+                stack.append((node, local, depth, 1))
+                stack.append((node[1], local, depth, 0))
+            else:
+                x = out.pop()
+                out.append(_folded({"neg": f"(0-{x})", "pos": x, "not": f"(!{x})"}[tag]))
+        elif tag == "bin":
+            if state == 0:
+                stack.append((node, local, depth, 1))
+                stack.append((node[3], local, depth, 0))
+                stack.append((node[2], local, depth, 0))
+            else:
+                b = out.pop()
+                a = out.pop()
+                out.append(_folded(f"({a}{node[1]}{b})"))
+        elif tag == "tern":
+            if state == 0:
+                stack.append((node, local, depth, 1))
+                for part in (node[3], node[2], node[1]):
+                    stack.append((part, local, depth, 0))
+            else:
+                b = out.pop()
+                a = out.pop()
+                c = out.pop()
+                out.append(_folded(f"({c}?{a}:{b})"))
+        elif tag == "call":
+            name, args = str(node[1]), node[2]
+            if state == 0:
+                stack.append((node, local, depth, 1))
+                for arg in reversed(args):
+                    stack.append((arg, local, depth, 0))
+                continue
+            values = out[len(out) - len(args) :]
+            del out[len(out) - len(args) :]
+            if name in functions:
+                formals, body = functions[name]
+                if len(formals) != len(values):
+                    raise ExpressionError(f"{name} takes {len(formals)} arguments, got {len(values)}")
+                if depth >= 64:
+                    raise ExpressionError(f".func {name} calls itself (or nests too deeply)")
+                stack.append((body.tree, dict(zip(formals, values, strict=True)), depth + 1, 0))
+                continue
+            if name == "ternary_fcn" and len(values) == 3:
+                out.append(_folded(f"({values[0]}?{values[1]}:{values[2]})"))
+                continue
+            if name not in FUNCTIONS:
+                raise ExpressionError(f"unknown function {name!r}")
+            least, most, _ = FUNCTIONS[name]
+            if not least <= len(values) <= most:
+                raise ExpressionError(f"{name} takes {least}..{most} argument(s), got {len(values)}")
+            out.append(_folded(f"{name}({','.join(values)})"))
+        else:  # pragma: no cover - the parser makes no other node
+            raise ExpressionError(f"bad node {tag}")
+    return out.pop()
+
+
+#: ``x(node)`` of a mechanical expression: a node's displacement (or angle), read as ``i(@x:node)``.
+_X_REF = re.compile(r"(?i)(?<![A-Za-z0-9_.])x\s*\(\s*([^(),\s]+)\s*\)")
+#: Prefix of the internal reference that stands for a displacement.
+DISPLACEMENT = "@x:"
+
+
+def displacement_refs(text: str) -> str:
+    """``x(n)`` written as the internal reference ``i(@x:n)`` (the expression parser reads v() and i())."""
+    return _X_REF.sub(lambda m: f"i({DISPLACEMENT}{m.group(1).lower()})", text)
+
+
+def mechanical_expression(text: str) -> bool:
+    """True when a FORCE/TORQUE value reads the motion: ``x(n)``, ``v(n)`` or ``time``."""
+    return bool(_X_REF.search(text) or re.search(r"(?i)(?<![A-Za-z0-9_.])(v\s*\(|time\b)", text))
+
+
+_VARIABLE = re.compile(r"(?i)(?<![A-Za-z0-9_.])(v\s*\(|i\s*\(|time\b)")
+
+
+def _folded(text: str) -> str:
+    """A sub-expression without variables replaced by its value (B-source semantics)."""
+    if _VARIABLE.search(text):
+        return text
+    value = Behaviour.from_text(text).evaluate(np.zeros(0))[0]
+    if not math.isfinite(value):
+        raise ExpressionError(f"the constant part {text} is not finite")
+    return repr(value)
+
+
+# ------------------------------------------------------------------- evaluation
+
+
+@dataclass(frozen=True)
+class Behaviour:
+    """A folded behavioural expression with its variables.
+
+    Attributes
+    ----------
+    text : str
+        The folded text (see :func:`fold`).
+    variables : tuple
+        ``("v", node)`` (ground excluded), ``("i", element key)`` and
+        ``("time", "")``, in order of first appearance.
+    """
+
+    text: str
+    tree: Node
+    variables: tuple[tuple[str, str], ...]
+
+    @classmethod
+    def from_text(cls, text: str, ground: str = "0") -> Behaviour:
+        """Parse a folded text (node names canonical: ``gnd`` is ground)."""
+        expr = parse(text)
+        found: dict[tuple[str, str], None] = {}
+        stack: list[Node] = [expr.tree]
+        while stack:
+            node = stack.pop()
+            tag = node[0]
+            if tag == "ref":
+                for arg in node[2]:
+                    key = (str(node[1]), ground if arg in ("0", "gnd") else arg)
+                    if key != ("v", ground):
+                        found.setdefault(key, None)
+            elif tag == "name":
+                if node[1] != TIME:
+                    raise ExpressionError(f"unknown parameter {node[1]!r}")
+                found.setdefault(("time", ""), None)
+            elif tag in ("neg", "pos", "not"):
+                stack.append(node[1])
+            elif tag == "bin":
+                stack.extend((node[3], node[2]))
+            elif tag == "tern":
+                stack.extend((node[3], node[2], node[1]))
+            elif tag == "call":
+                stack.extend(reversed(node[2]))
+        # keep a stable order: first appearance in the text
+        order = sorted(found, key=lambda k: _position(expr.text, k))
+        return cls(text, expr.tree, tuple(order))
+
+    def evaluate(self, values: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+        """Value and gradient at ``values`` (one per entry of :attr:`variables`).
+
+        Raises
+        ------
+        ExpressionError
+            Domain errors (``log`` of a negative number...) or division by zero.
+        """
+        n = len(self.variables)
+        index = {key: k for k, key in enumerate(self.variables)}
+        zero = np.zeros(n)
+        stack: list[tuple[Node, int]] = [(self.tree, 0)]
+        vals: list[tuple[float, NDArray[np.float64]]] = []
+        while stack:
+            node, state = stack.pop()
+            tag = node[0]
+            if tag == "num":
+                vals.append((float(node[1]), zero))
+            elif tag == "name":
+                k = index[("time", "")]
+                grad = zero.copy()
+                grad[k] = 1.0
+                vals.append((float(values[k]), grad))
+            elif tag == "ref":
+                kind, args = str(node[1]), node[2]
+                value, grad = 0.0, zero.copy()
+                for sign, arg in zip((1.0, -1.0), args, strict=False):
+                    key = (kind, "0" if arg in ("0", "gnd") else arg)
+                    if key in index:
+                        value += sign * float(values[index[key]])
+                        grad[index[key]] += sign
+                vals.append((value, grad))
+            elif tag in ("neg", "pos", "not"):
+                if state == 0:
+                    stack.append((node, 1))
+                    stack.append((node[1], 0))
+                else:
+                    x, dx = vals.pop()
+                    if tag == "neg":
+                        vals.append((-x, -dx))
+                    elif tag == "pos":
+                        vals.append((x, dx))
+                    else:
+                        vals.append((float(not x), zero))
+            elif tag == "bin":
+                if state == 0:
+                    stack.append((node, 1))
+                    stack.append((node[3], 0))
+                    stack.append((node[2], 0))
+                else:
+                    b = vals.pop()
+                    a = vals.pop()
+                    vals.append(_binary(str(node[1]), a, b, zero))
+            elif tag == "tern":
+                if state == 0:
+                    stack.append((node, 1))
+                    stack.append((node[1], 0))
+                else:
+                    cond, _ = vals.pop()
+                    stack.append((node[2] if cond else node[3], 0))
+            elif tag == "call":
+                if state == 0:
+                    stack.append((node, 1))
+                    for arg in reversed(node[2]):
+                        stack.append((arg, 0))
+                else:
+                    count = len(node[2])
+                    args = vals[len(vals) - count :]
+                    del vals[len(vals) - count :]
+                    _, _, func = FUNCTIONS[str(node[1])]
+                    try:
+                        value, partials = func(*(a for a, _ in args))
+                    except (ValueError, OverflowError, ZeroDivisionError) as exc:
+                        raise ExpressionError(f"{node[1]}(): {exc}") from None
+                    grad = zero.copy()
+                    for p, (_, da) in zip(partials, args, strict=True):
+                        if p:
+                            grad = grad + p * da
+                    vals.append((value, grad))
+        value, grad = vals.pop()
+        return value, grad
+
+
+def _position(text: str, key: tuple[str, str]) -> int:
+    low = text.lower()
+    probe = TIME if key[0] == "time" else f"{key[0]}({key[1]}"
+    at = low.find(probe)
+    if at < 0 and key[0] == "v":
+        at = low.find(f",{key[1]})")
+    return at if at >= 0 else len(low)
+
+
+def _binary(
+    op: str,
+    a: tuple[float, NDArray[np.float64]],
+    b: tuple[float, NDArray[np.float64]],
+    zero: NDArray[np.float64],
+) -> tuple[float, NDArray[np.float64]]:
+    x, dx = a
+    y, dy = b
+    if op == "+":
+        return x + y, dx + dy
+    if op == "-":
+        return x - y, dx - dy
+    if op == "*":
+        return x * y, y * dx + x * dy
+    if op == "/":
+        if y == 0:
+            raise ExpressionError("division by zero")
+        return x / y, (dx * y - x * dy) / (y * y)
+    if op == "%":
+        if y == 0:
+            raise ExpressionError("modulo by zero")
+        return math.fmod(x, y), dx - math.trunc(x / y) * dy
+    if op in ("**", "^"):
+        value, px, py = _power(x, y)
+        return value, px * dx + py * dy
+    result = {
+        "==": x == y,
+        "!=": x != y,
+        "<": x < y,
+        ">": x > y,
+        "<=": x <= y,
+        ">=": x >= y,
+        "&&": bool(x) and bool(y),
+        "||": bool(x) or bool(y),
+    }[op]
+    return float(result), zero
+
+
+# ------------------------------------------------------------------------ diode
+
+#: Model parameters netlistdyn reads, with ngspice's aliases.
+DIODE_PARAMS: dict[str, str] = {
+    "is": "IS",
+    "js": "IS",
+    "n": "N",
+    "rs": "RS",
+    "cjo": "CJO",
+    "cj0": "CJO",
+    "cj": "CJO",
+    "vj": "VJ",
+    "pb": "VJ",
+    "m": "M",
+    "mj": "M",
+    "tt": "TT",
+    "fc": "FC",
+}
+#: Parameters accepted when they keep their default (no effect at 27 °C).
+DIODE_NEUTRAL: dict[str, float] = {"level": 1.0, "eg": 1.11, "xti": 3.0, "kf": 0.0, "af": 1.0, "tnom": 27.0}
+
+
+def thermal_voltage(temp_k: float = REFTEMP) -> float:
+    """kT/q (V) with ngspice's constants."""
+    return K_OVER_Q * temp_k
+
+
+def diode_current(
+    vd: float, isat: float, n: float, gmin: float = GMIN, vt: float | None = None
+) -> tuple[float, float]:
+    """Junction current and conductance of ngspice's diode (no breakdown).
+
+    Parameters
+    ----------
+    vd : float
+        Junction voltage (V).
+    isat : float
+        Saturation current times area (A).
+    n : float
+        Emission coefficient.
+    gmin : float
+        Conductance in parallel (S).
+    vt : float, optional
+        Thermal voltage (V); default at 27 °C.
+
+    Returns
+    -------
+    (float, float)
+        Current (A) and dI/dV (S).
+    """
+    vte = n * (thermal_voltage() if vt is None else vt)
+    if vd >= -3.0 * vte:
+        e = _safe_exp(vd / vte)
+        return isat * (e - 1.0) + gmin * vd, isat * e / vte + gmin
+    arg = 3.0 * vte / (vd * math.e)
+    arg = arg * arg * arg
+    return -isat * (1.0 + arg) + gmin * vd, isat * 3.0 * arg / vd + gmin
+
+
+def diode_charge(
+    vd: float, current: float, conductance: float, cjo: float, vj: float, m: float, tt: float, fc: float
+) -> tuple[float, float]:
+    """Junction plus diffusion charge and its derivative (ngspice's formulas).
+
+    Parameters
+    ----------
+    vd : float
+        Junction voltage (V).
+    current, conductance : float
+        Junction current (A) and dI/dV (S) at ``vd`` (diffusion charge TT·I).
+    cjo, vj, m, tt, fc : float
+        Zero-bias capacitance times area (F), junction potential (V),
+        grading coefficient, transit time (s), forward-bias coefficient.
+
+    Returns
+    -------
+    (float, float)
+        Charge (C) and capacitance dQ/dV (F).
+    """
+    q = tt * current
+    c = tt * conductance
+    if cjo == 0:
+        return q, c
+    depcap = fc * vj
+    if vd < depcap:
+        arg = 1.0 - vd / vj
+        sarg = math.exp(-m * math.log(arg))
+        return q + vj * cjo * (1.0 - arg * sarg) / (1.0 - m), c + cjo * sarg
+    f1 = vj * (1.0 - (1.0 - fc) ** (1.0 - m)) / (1.0 - m)
+    f2 = (1.0 - fc) ** (1.0 + m)
+    f3 = 1.0 - fc * (1.0 + m)
+    czof2 = cjo / f2
+    q += cjo * f1 + czof2 * (f3 * (vd - depcap) + (m / (vj + vj)) * (vd * vd - depcap * depcap))
+    return q, c + czof2 * (f3 + m * vd / vj)
+
+
+def diode_current_array(
+    vd: NDArray[np.float64], isat: NDArray[np.float64], n: NDArray[np.float64], gmin: float = GMIN
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`diode_current` for arrays of junctions (same formulas, elementwise)."""
+    vte = n * thermal_voltage()
+    forward = vd >= -3.0 * vte
+    x = vd / vte
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        e = np.where(x < 709.0, np.exp(np.minimum(x, 709.0)), np.inf)
+        safe = np.where(forward, -1.0, vd)
+        arg = (3.0 * vte / (safe * math.e)) ** 3
+        current = np.where(forward, isat * (e - 1.0), -isat * (1.0 + arg)) + gmin * vd
+        conductance = np.where(forward, isat * e / vte, isat * 3.0 * arg / safe) + gmin
+    return current, conductance
+
+
+def diode_charge_array(
+    vd: NDArray[np.float64],
+    current: NDArray[np.float64],
+    conductance: NDArray[np.float64],
+    cjo: NDArray[np.float64],
+    vj: NDArray[np.float64],
+    m: NDArray[np.float64],
+    tt: NDArray[np.float64],
+    fc: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`diode_charge` for arrays of junctions (same formulas, elementwise)."""
+    q = tt * current
+    c = tt * conductance
+    depcap = fc * vj
+    low = vd < depcap
+    arg = np.where(low, 1.0 - vd / vj, 1.0)
+    sarg = np.exp(-m * np.log(arg))
+    q_low = vj * cjo * (1.0 - arg * sarg) / (1.0 - m)
+    c_low = cjo * sarg
+    f1 = vj * (1.0 - (1.0 - fc) ** (1.0 - m)) / (1.0 - m)
+    f2 = (1.0 - fc) ** (1.0 + m)
+    f3 = 1.0 - fc * (1.0 + m)
+    czof2 = cjo / f2
+    q_high = cjo * f1 + czof2 * (f3 * (vd - depcap) + (m / (vj + vj)) * (vd * vd - depcap * depcap))
+    c_high = czof2 * (f3 + m * vd / vj)
+    return q + np.where(low, q_low, q_high), c + np.where(low, c_low, c_high)

@@ -1,0 +1,980 @@
+"""Nonlinear netlists: residual and Jacobian, operating point, linearisation.
+
+The circuit is written as modified nodal equations ``F(z) = 0`` in the node
+voltages and the currents of the branches that need one (voltage sources,
+inductors, capacitors, controlled voltage sources, behavioural voltage
+sources, transformer ports, and any element whose current an expression or
+an F/H source reads). Each element stamps its branch law with the SPICE sign
+conventions; diodes and behavioural sources add their current or voltage and
+its exact derivatives (:mod:`netlistdyn.devices`).
+
+Two modes share the stamps:
+
+- ``dc``: capacitors open, inductors short (the operating point);
+- ``state``: each state is given — a capacitor's charge fixes its voltage
+  q/C, an inductor's current is a current source, a diode's junction charge
+  fixes its junction voltage — and the network is resistive. Solving it
+  gives ``x' = f(x, u, t)`` (:mod:`netlistdyn.nltransient`), with the same
+  charges and currents as states as the linear compiler.
+
+The operating point is found as SPICE finds it: Newton's method with
+junction-voltage limiting, then gmin stepping, then source stepping.
+:func:`linearise` turns the netlist into a *linear* netlist at a point —
+a diode becomes its small-signal conductance and incremental capacitance, a
+behavioural source the sum of controlled sources given by its partial
+derivatives — which :mod:`netlistdyn.formulate` compiles into A, B, C, D with
+the usual named states (now deviations from the point).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from .devices import (
+    DISPLACEMENT,
+    Behaviour,
+    diode_charge,
+    diode_charge_array,
+    diode_current,
+    diode_current_array,
+    thermal_voltage,
+)
+from .errors import NetlistError, SourceLocation
+from .expressions import ExpressionError
+from .mechanics import state_prefix
+from .netlist import GROUND, Diagnostic, Element, Kind, Netlist
+
+#: Relative Newton step at which the solution is converged (then one more step polishes it).
+NEWTON_RTOL = 1e-13
+#: Absolute floors of the step test: voltages (V) and currents (A).
+NEWTON_VNTOL = 1e-15
+NEWTON_ABSTOL = 1e-21
+#: Newton iterations allowed per solve.
+MAX_ITERATIONS = 200
+#: Up to this many unknowns the Newton step is a dense solve (faster than a sparse LU).
+DENSE_LIMIT = 60
+
+
+class NoOperatingPoint(NetlistError):
+    """Newton's method, gmin stepping and source stepping all failed."""
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """A solution of the DC (or given-state) equations.
+
+    Attributes
+    ----------
+    voltages : dict
+        Node voltage (V) by node name, ground excluded, internal nodes included.
+    currents : dict
+        Branch current (A) by element key: from n+ through the element to n−.
+    inputs : dict
+        The independent sources' values (V or A) by name.
+    iterations : int
+        Newton iterations in all (every continuation step included).
+    residual : float
+        Largest |F| of the final equations (A on node rows, V on branch rows).
+    method : str
+        ``newton``, ``gmin stepping`` or ``source stepping``.
+    z : ndarray
+        The unknown vector (internal use).
+    """
+
+    voltages: dict[str, float]
+    currents: dict[str, float]
+    inputs: dict[str, float]
+    iterations: int
+    residual: float
+    method: str
+    z: NDArray[np.float64] = field(repr=False, compare=False)
+    displacements: dict[str, float] = field(default_factory=dict)
+    """Displacement or angle x(n) (m or rad) of each node an expression reads it at."""
+
+
+@dataclass(frozen=True)
+class _Diode:
+    element: Element
+    anode: int | None  # junction anode (the internal node when RS > 0)
+    cathode: int | None
+    isat: float
+    n: float
+    charge_branch: int | None
+    cjo: float
+
+
+@dataclass(frozen=True)
+class _Behavioural:
+    element: Element
+    behaviour: Behaviour
+    plus: int | None
+    minus: int | None
+    branch: int | None  # voltage sources: their current unknown
+    refs: tuple[int | None, ...]  # unknown index of each variable (None: time)
+
+
+def _vte(model_n: float) -> float:
+    return model_n * thermal_voltage()
+
+
+class NonlinearCircuit:
+    """The modified nodal equations of a netlist, linear or not.
+
+    Parameters
+    ----------
+    netlist : Netlist
+
+    Raises
+    ------
+    NetlistError
+        An expression names a node or element that does not exist.
+    """
+
+    def __init__(self, netlist: Netlist) -> None:
+        self.netlist = netlist
+        elements = netlist.elements
+        keyed = {e.key: e for e in elements}
+        wanted: set[str] = set()
+        behaviours: dict[str, Behaviour] = {}
+        displaced: dict[str, Element] = {}  # nodes whose displacement x(n) an expression reads
+        for e in elements:
+            if e.kind in (Kind.CCCS, Kind.CCVS) and e.control_source is not None:
+                wanted.add(e.control_source)
+            if e.kind in (Kind.BVOLTAGE, Kind.BCURRENT):
+                assert e.expression is not None
+                try:
+                    b = Behaviour.from_text(e.expression)
+                except ExpressionError as exc:
+                    raise NetlistError(f"{e.name}: {exc}", e.loc) from None
+                behaviours[e.key] = b
+                for kind, ref in b.variables:
+                    if kind == "i" and ref.startswith(DISPLACEMENT):
+                        displaced.setdefault(ref[len(DISPLACEMENT) :], e)
+                    elif kind == "i":
+                        if ref not in keyed:
+                            raise NetlistError(f"{e.name}: i({ref}) names no element", e.loc)
+                        if keyed[ref].kind in (Kind.ISOURCE, Kind.BCURRENT, Kind.DIODE, Kind.COUPLING):
+                            raise NetlistError(
+                                f"{e.name}: i({ref}): only V, L, C, R, E, F, G, H, B V= currents can be read",
+                                e.loc,
+                            )
+                        wanted.add(ref)
+        self.nodes: list[str] = list(netlist.nodes)
+        node_set = set(self.nodes)
+        for e in elements:
+            if e.kind is Kind.DIODE and e.diode is not None and e.diode.RS > 0:
+                self.nodes.append(f"{e.key}#anode")
+        self.node_index = {n: k for k, n in enumerate(self.nodes)}
+        for key, b in behaviours.items():
+            for kind, ref in b.variables:
+                if kind == "v" and ref not in node_set:
+                    elem = keyed[key]
+                    raise NetlistError(f"{elem.name}: v({ref}) names no node of the circuit", elem.loc)
+        for node, elem in displaced.items():
+            if node not in node_set:
+                raise NetlistError(f"{elem.name}: x({node}) names no node of the circuit", elem.loc)
+        needs_branch = (
+            Kind.VSOURCE,
+            Kind.INDUCTOR,
+            Kind.CAPACITOR,
+            Kind.VCVS,
+            Kind.CCVS,
+            Kind.BVOLTAGE,
+            Kind.TRANSFORMER,
+        )
+        n = len(self.nodes)
+        self.branch_index: dict[str, int] = {}
+        for e in elements:
+            if e.kind in needs_branch or e.key in wanted:
+                self.branch_index[e.key] = n + len(self.branch_index)
+        self.diodes: list[_Diode] = []
+        for e in elements:
+            if e.kind is Kind.DIODE:
+                model = e.diode
+                assert model is not None
+                anode = self._at(f"{e.key}#anode" if model.RS > 0 else e.nodes[0])
+                charge = model.CJO > 0 or model.TT > 0
+                if charge:
+                    self.branch_index[e.key + "#q"] = n + len(self.branch_index)
+                self.diodes.append(
+                    _Diode(
+                        e,
+                        anode,
+                        self._at(e.nodes[1]),
+                        model.IS * e.value,
+                        model.N,
+                        self.branch_index.get(e.key + "#q"),
+                        model.CJO * e.value,
+                    )
+                )
+        first = n + len(self.branch_index)
+        #: Unknown of each displacement x(n) read by an expression (a state in ``state`` mode).
+        self.disp_index = {node: first + k for k, node in enumerate(displaced)}
+        self.size = first + len(self.disp_index)
+        self.behavioural: list[_Behavioural] = []
+        for e in elements:
+            if e.key in behaviours:
+                b = behaviours[e.key]
+                refs = tuple(self._variable(kind, ref) for kind, ref in b.variables)
+                self.behavioural.append(
+                    _Behavioural(
+                        e, b, self._at(e.nodes[0]), self._at(e.nodes[1]), self.branch_index.get(e.key), refs
+                    )
+                )
+        self.sources = netlist.sources
+        self.source_index = {e.key: j for j, e in enumerate(self.sources)}
+        self.capacitors = [e for e in elements if e.kind is Kind.CAPACITOR]
+        self.inductors = [e for e in elements if e.kind is Kind.INDUCTOR]
+        self.charged_diodes = [d for d in self.diodes if d.charge_branch is not None]
+        self._diode_arrays()
+        self._linear: dict[str, sp.csc_array] = {}
+        self._abs_linear: dict[str, sp.csc_array] = {}
+        self._floor: NDArray[np.float64] | None = None
+        self._vj_last: NDArray[np.float64] | None = None
+        self._dense: dict[str, NDArray[np.float64]] = {}
+        self._abs_dense: dict[str, NDArray[np.float64]] = {}
+
+    def _variable(self, kind: str, ref: str) -> int | None:
+        """Unknown read by an expression variable (None: time)."""
+        if kind == "time":
+            return None
+        if kind == "v":
+            return self.node_index[ref]
+        if ref.startswith(DISPLACEMENT):
+            return self.disp_index[ref[len(DISPLACEMENT) :]]
+        return self.branch_index[ref]
+
+    def _diode_arrays(self) -> None:
+        """Index and parameter arrays of the diodes (ground is the extra slot ``size``)."""
+        size = self.size
+
+        def slot(index: int | None) -> int:
+            return size if index is None else index
+
+        self._da = np.array([slot(d.anode) for d in self.diodes], dtype=np.intp)
+        self._dk = np.array([slot(d.cathode) for d in self.diodes], dtype=np.intp)
+        self._dis = np.array([d.isat for d in self.diodes])
+        self._dn = np.array([d.n for d in self.diodes])
+        rows = np.concatenate([self._da, self._da, self._dk, self._dk])
+        cols = np.concatenate([self._da, self._dk, self._da, self._dk])
+        self._dkeep = (rows < size) & (cols < size)
+        self._drows, self._dcols = rows[self._dkeep], cols[self._dkeep]
+        charged = self.charged_diodes
+        models = [d.element.diode for d in charged]
+        self._qa = np.array([slot(d.anode) for d in charged], dtype=np.intp)
+        self._qk = np.array([slot(d.cathode) for d in charged], dtype=np.intp)
+        self._qis = np.array([d.isat for d in charged])
+        self._qn = np.array([d.n for d in charged])
+        self._qcjo = np.array([d.cjo for d in charged])
+        self._qvj = np.array([m.VJ for m in models if m is not None])
+        self._qm = np.array([m.M for m in models if m is not None])
+        self._qtt = np.array([m.TT for m in models if m is not None])
+        self._qfc = np.array([m.FC for m in models if m is not None])
+        self._qbranch = np.array([d.charge_branch for d in charged], dtype=np.intp)
+
+    def charge_of(self, vd: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Charge (C) and capacitance (F) of every charged junction at junction voltages ``vd``."""
+        i, g = diode_current_array(vd, self._qis, self._qn)
+        return diode_charge_array(vd, i, g, self._qcjo, self._qvj, self._qm, self._qtt, self._qfc)
+
+    def junction_voltages(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The junction voltages (V) whose charges are ``q`` (C): Newton on the monotonic q(v)."""
+        # start from the last answer (a transient asks for nearby charges step after step)
+        v = (
+            self._vj_last.copy()
+            if self._vj_last is not None and self._vj_last.size == q.size
+            else np.zeros(q.size)
+        )
+        vte = self._qn * thermal_voltage()
+        for _ in range(200):
+            charge, cap = self.charge_of(v)
+            new = v - (charge - q) / cap
+            # exponential diffusion charge: forward steps in the logarithm; deep reverse: bounded steps
+            new = np.where((new > v + 4 * vte) & (self._qtt > 0), v + 4 * vte, new)
+            deep = (self._qcjo > 0) & (new < v) & (new < -1e3 * self._qvj)
+            new = np.where(deep, np.where(v < 0, np.maximum(new, 2 * v - 1.0), -1.0), new)
+            done = np.abs(new - v) <= 1e-15 * np.maximum(1.0, np.abs(v))
+            v = new
+            if np.all(done):
+                break
+        if np.all(np.isfinite(v)):
+            self._vj_last = v
+        return v
+
+    # ------------------------------------------------------------------ stamps
+
+    def _at(self, node: str) -> int | None:
+        return None if node == GROUND else self.node_index[node]
+
+    def linear_matrix(self, mode: str) -> sp.csc_array:
+        """The constant part G of ``F(z) = G z − b + N(z)`` in ``mode`` (``dc`` or ``state``)."""
+        if mode in self._linear:
+            return self._linear[mode]
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+
+        def add(r: int | None, c: int | None, v: float) -> None:
+            if r is not None and c is not None and v != 0:
+                rows.append(r)
+                cols.append(c)
+                vals.append(v)
+
+        def conductance(a: int | None, b: int | None, g: float) -> None:
+            add(a, a, g)
+            add(b, b, g)
+            add(a, b, -g)
+            add(b, a, -g)
+
+        def kcl(a: int | None, b: int | None, k: int) -> None:  # current k leaves a, enters b
+            add(a, k, 1.0)
+            add(b, k, -1.0)
+
+        def across(k: int, a: int | None, b: int | None, scale: float = 1.0) -> None:  # row k: v_a − v_b
+            add(k, a, scale)
+            add(k, b, -scale)
+
+        for e in self.netlist.elements:
+            kind = e.kind
+            if kind in (Kind.COUPLING, Kind.ISOURCE, Kind.BCURRENT):
+                continue
+            if kind is Kind.DIODE:
+                model = e.diode
+                assert model is not None
+                if model.RS > 0:
+                    conductance(self._at(e.nodes[0]), self._at(f"{e.key}#anode"), e.value / model.RS)
+                continue
+            if kind is Kind.TRANSFORMER:
+                k = self.branch_index[e.key]
+                p1, m1, p2, m2 = (self._at(x) for x in e.nodes)
+                kcl(p1, m1, k)
+                add(p2, k, -e.value)
+                add(m2, k, e.value)
+                across(k, p1, m1)
+                across(k, p2, m2, -e.value)
+                continue
+            a, b = self._at(e.nodes[0]), self._at(e.nodes[1])
+            k = self.branch_index.get(e.key)
+            if kind is Kind.RESISTOR:
+                if k is None:
+                    conductance(a, b, 1.0 / e.value)
+                else:
+                    kcl(a, b, k)
+                    across(k, a, b)
+                    add(k, k, -e.value)
+            elif kind is Kind.VCCS:
+                c, d = (self._at(x) for x in e.control_nodes or ())
+                for row, sign in ((a, 1.0), (b, -1.0)):
+                    add(row, c, sign * e.value)
+                    add(row, d, -sign * e.value)
+                if k is not None:  # its current read elsewhere: k = gain (v_c − v_d)
+                    add(k, k, 1.0)
+                    add(k, c, -e.value)
+                    add(k, d, e.value)
+            elif kind is Kind.CCCS:
+                kc = self.branch_index[e.control_source or ""]
+                add(a, kc, e.value)
+                add(b, kc, -e.value)
+                if k is not None:
+                    add(k, k, 1.0)
+                    add(k, kc, -e.value)
+            else:
+                assert k is not None
+                kcl(a, b, k)
+                if kind in (Kind.VSOURCE, Kind.BVOLTAGE):
+                    across(k, a, b)
+                elif kind is Kind.VCVS:
+                    across(k, a, b)
+                    c, d = (self._at(x) for x in e.control_nodes or ())
+                    add(k, c, -e.value)
+                    add(k, d, e.value)
+                elif kind is Kind.CCVS:
+                    across(k, a, b)
+                    add(k, self.branch_index[e.control_source or ""], -e.value)
+                elif kind is Kind.INDUCTOR:
+                    if mode == "dc":
+                        across(k, a, b)
+                    else:
+                        add(k, k, 1.0)
+                elif kind is Kind.CAPACITOR:
+                    if mode == "dc":
+                        add(k, k, 1.0)
+                    else:
+                        across(k, a, b)
+                elif kind is Kind.ISOURCE:  # pragma: no cover - skipped above
+                    pass
+        for d in self.diodes:
+            if d.charge_branch is not None:
+                kq = d.charge_branch
+                kcl(d.anode, d.cathode, kq)
+                if mode == "dc":
+                    add(kq, kq, 1.0)
+                else:
+                    across(kq, d.anode, d.cathode)
+        for node, k in self.disp_index.items():  # dc: at rest, v(n) = 0; state: x(n) given
+            add(k, self.node_index[node] if mode == "dc" else k, 1.0)
+        matrix = sp.csc_array((vals, (rows, cols)), shape=(self.size, self.size))
+        matrix.sum_duplicates()
+        self._linear[mode] = matrix
+        self._abs_linear[mode] = abs(matrix)
+        self._dense[mode] = matrix.toarray()
+        self._abs_dense[mode] = np.abs(self._dense[mode])
+        return matrix
+
+    def rhs(
+        self, mode: str, u: NDArray[np.float64], x: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64]:
+        """The constant vector b of ``F = G z − b + N(z)``: sources (and states in ``state`` mode)."""
+        b = np.zeros(self.size)
+        for j, e in enumerate(self.sources):
+            if e.kind is Kind.VSOURCE:
+                b[self.branch_index[e.key]] += u[j]
+            else:
+                p, m = self._at(e.nodes[0]), self._at(e.nodes[1])
+                if p is not None:
+                    b[p] -= u[j]
+                if m is not None:
+                    b[m] += u[j]
+        if mode == "state":
+            assert x is not None
+            nc = len(self.capacitors)
+            nl = len(self.inductors)
+            for k, e in enumerate(self.capacitors):
+                b[self.branch_index[e.key]] = x[k] / e.value
+            for k, e in enumerate(self.inductors):
+                b[self.branch_index[e.key]] = x[nc + k]
+            nd = len(self.charged_diodes)
+            if nd:
+                b[self._qbranch] = self.junction_voltages(np.asarray(x[nc + nl : nc + nl + nd], dtype=float))
+            for k, index in enumerate(self.disp_index.values()):
+                b[index] = x[nc + nl + len(self.charged_diodes) + k]
+        return b
+
+    def junction_voltage(self, d: _Diode, q: float) -> float:
+        """The junction voltage (V) whose charge is ``q`` (C): Newton on q(v), monotonic."""
+        model = d.element.diode
+        assert model is not None
+        area = d.element.value
+        v = 0.0
+        vte = _vte(d.n)
+        for _ in range(200):
+            i, g = diode_current(v, d.isat, d.n)
+            charge, cap = diode_charge(v, i, g, model.CJO * area, model.VJ, model.M, model.TT, model.FC)
+            step = (charge - q) / cap
+            new = v - step
+            if new > v + 4 * vte and model.TT > 0:  # exponential diffusion charge: step in the log
+                new = v + 4 * vte
+            if model.CJO > 0 and new < v and new < -1e3 * model.VJ:
+                new = max(new, 2 * v - 1.0) if v < 0 else -1.0
+            if abs(new - v) <= 1e-15 * max(1.0, abs(v)):
+                return new
+            v = new
+        return v
+
+    def nonlinear(
+        self, z: NDArray[np.float64], t: float, mode: str
+    ) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+        """N(z) and its Jacobian triplets (diodes and behavioural sources)."""
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+        tri_r, tri_c, tri_v = [], [], []
+        if self.diodes:
+            ext = np.append(z, 0.0)
+            vd = ext[self._da] - ext[self._dk]
+            i, g = diode_current_array(vd, self._dis, self._dn)
+            acc = np.zeros(self.size + 1)
+            np.add.at(acc, self._da, i)
+            np.add.at(acc, self._dk, -i)
+            out = acc[: self.size]
+            tri_r, tri_c = [self._drows], [self._dcols]
+            tri_v = [np.concatenate([g, -g, -g, g])[self._dkeep]]
+        else:
+            out = np.zeros(self.size)
+        for b in self.behavioural:
+            args = np.array([t if r is None else float(z[r]) for r in b.refs])
+            try:
+                value, grad = b.behaviour.evaluate(args)
+            except ExpressionError as exc:
+                raise NetlistError(f"{b.element.name}: {exc}", b.element.loc) from None
+            if b.branch is not None:  # row: v_a − v_b − f = 0
+                targets: tuple[tuple[int | None, float], ...] = ((b.branch, -1.0),)
+            else:  # current f from n+ to n−
+                targets = ((b.plus, 1.0), (b.minus, -1.0))
+            for r, sign in targets:
+                if r is None:
+                    continue
+                out[r] += sign * value
+                for c, gk in zip(b.refs, grad, strict=True):
+                    if c is not None and gk != 0:
+                        rows.append(r)
+                        cols.append(c)
+                        vals.append(sign * float(gk))
+        return (
+            out,
+            np.concatenate([*tri_r, np.asarray(rows, dtype=np.intp)]),
+            np.concatenate([*tri_c, np.asarray(cols, dtype=np.intp)]),
+            np.concatenate([*tri_v, np.asarray(vals, dtype=float)]),
+        )
+
+    def _junction_from_z(self, d: _Diode, z: NDArray[np.float64]) -> float:
+        return (0.0 if d.anode is None else float(z[d.anode])) - (
+            0.0 if d.cathode is None else float(z[d.cathode])
+        )
+
+    def evaluate(
+        self,
+        z: NDArray[np.float64],
+        mode: str,
+        b: NDArray[np.float64],
+        t: float = 0.0,
+        gshunt: float = 0.0,
+    ) -> tuple[NDArray[np.float64], Any]:
+        """F(z) and its Jacobian (dense up to ``DENSE_LIMIT`` unknowns, else sparse CSC)."""
+        F, J, _ = self._evaluate(z, mode, b, t, gshunt)
+        return F, J
+
+    def _evaluate(
+        self,
+        z: NDArray[np.float64],
+        mode: str,
+        b: NDArray[np.float64],
+        t: float,
+        gshunt: float,
+    ) -> tuple[NDArray[np.float64], Any, NDArray[np.float64]]:
+        """F(z), its Jacobian and the rounding scale of each row (|G||z| + |b| + |N|)."""
+        G = self.linear_matrix(mode)
+        nl, rows, cols, vals = self.nonlinear(z, t, mode)
+        n = len(self.nodes)
+        if self.size <= DENSE_LIMIT:  # small: dense arrays (scipy.sparse's overhead dominates)
+            dense = self._dense[mode]
+            F = dense @ z - b + nl
+            J: Any = dense.copy()
+            np.add.at(J, (rows, cols), vals)
+            scale = self._abs_dense[mode] @ np.abs(z) + np.abs(b) + np.abs(nl)
+            if gshunt:
+                F[:n] += gshunt * z[:n]
+                J[np.arange(n), np.arange(n)] += gshunt
+            return F, J, scale
+        F = G @ z - b + nl
+        J = G + sp.csc_array((vals, (rows, cols)), shape=(self.size, self.size)) if vals.size else G
+        scale = self._abs_linear[mode] @ np.abs(z) + np.abs(b) + np.abs(nl)
+        if gshunt:
+            F[:n] += gshunt * z[:n]
+            J = J + sp.diags_array(np.r_[np.full(n, gshunt), np.zeros(self.size - n)]).tocsc()
+        return F, J, scale
+
+    # ------------------------------------------------------------------ Newton
+
+    def _limit(self, z: NDArray[np.float64], dz: NDArray[np.float64]) -> float:
+        """Step fraction that keeps every forward junction step within SPICE's pnjlim."""
+        alpha = 1.0
+        for d in self.diodes:
+            vold = self._junction_from_z(d, z)
+            dv = (0.0 if d.anode is None else dz[d.anode]) - (0.0 if d.cathode is None else dz[d.cathode])
+            vnew = vold + dv
+            vte = _vte(d.n)
+            vcrit = vte * math.log(vte / (math.sqrt(2.0) * d.isat))
+            if vnew > vcrit and abs(dv) > 2 * vte:
+                if vold > 0:
+                    arg = 1 + dv / vte
+                    limited = vold + vte * math.log(arg) if arg > 0 else vcrit
+                else:
+                    limited = vte * math.log(vnew / vte)
+                if dv != 0:
+                    alpha = min(alpha, max((limited - vold) / dv, 1e-6))
+        return alpha
+
+    def newton(
+        self,
+        z0: NDArray[np.float64],
+        mode: str,
+        b: NDArray[np.float64],
+        t: float = 0.0,
+        gshunt: float = 0.0,
+        max_iterations: int = MAX_ITERATIONS,
+    ) -> tuple[NDArray[np.float64], int, bool]:
+        """Damped Newton from ``z0``; (z, iterations, converged).
+
+        Converged when a full step is below ``NEWTON_RTOL`` of the unknowns
+        (with absolute floors), or when the residual of every row is at the
+        rounding level of the terms that make it up.
+        """
+        z = z0.copy()
+        n = len(self.nodes)
+        if self._floor is None:
+            self._floor = np.r_[np.full(n, NEWTON_VNTOL), np.full(self.size - n, NEWTON_ABSTOL)]
+        floor = self._floor
+        eps64 = 64 * 2.220446049250313e-16
+        try:
+            F, J, scale = self._evaluate(z, mode, b, t, gshunt)
+        except NetlistError:
+            return z, 0, False
+        if not np.all(np.isfinite(F)):
+            return z, 0, False
+        if np.all(np.abs(F) <= eps64 * scale + 1e-300):
+            return z, 0, True
+        for it in range(1, max_iterations + 1):
+            try:
+                with np.errstate(all="ignore"):
+                    if self.size <= DENSE_LIMIT:
+                        dz = np.linalg.solve(J, -F)
+                    else:
+                        dz = spla.splu(J.tocsc()).solve(-F)
+            except (RuntimeError, np.linalg.LinAlgError):
+                return z, it, False
+            if not np.all(np.isfinite(dz)):
+                return z, it, False
+            alpha = self._limit(z, dz)
+            for _ in range(40):  # back off from overflow (exp of a large voltage) or a domain error
+                trial = z + alpha * dz
+                try:
+                    F, J, scale = self._evaluate(trial, mode, b, t, gshunt)
+                    if np.all(np.isfinite(F)):
+                        break
+                except NetlistError:
+                    pass
+                alpha *= 0.5
+            else:
+                return z, it, False
+            # per unknown, with a floor of NEWTON_RTOL of the largest voltage or current (norm-wise):
+            # a small current that is a difference of large ones is known only to that floor
+            big = np.maximum(np.abs(z), np.abs(trial))
+            kinds = np.r_[
+                np.full(n, big[:n].max(initial=0.0)), np.full(self.size - n, big[n:].max(initial=0.0))
+            ]
+            size = float(np.max(np.abs(dz) / (NEWTON_RTOL * (big + kinds) + floor)))
+            z = trial
+            if alpha == 1.0 and (size <= 1.0 or np.all(np.abs(F) <= eps64 * scale + 1e-300)):
+                return z, it, True
+        return z, max_iterations, False
+
+    def operating_point(
+        self,
+        u: NDArray[np.float64] | None = None,
+        t: float = 0.0,
+        mode: str = "dc",
+        x: NDArray[np.float64] | None = None,
+    ) -> OperatingPoint:
+        """Solve F(z) = 0: Newton, then gmin stepping, then source stepping.
+
+        Parameters
+        ----------
+        u : ndarray, optional
+            Source values (default: each source's DC value, ngspice's op).
+        t : float
+            Time seen by behavioural expressions (s).
+        mode : str
+            ``dc`` or ``state`` (then ``x`` gives the states).
+        x : ndarray, optional
+            States in ``state`` mode.
+
+        Raises
+        ------
+        NoOperatingPoint
+            When every method fails.
+        """
+        if u is None:
+            u = np.array([self.dc_value(e) for e in self.sources])
+        b = self.rhs(mode, u, x)
+        z0 = np.zeros(self.size)
+        total = 0
+        z, its, ok = self.newton(z0, mode, b, t)
+        total += its
+        method = "newton"
+        if not ok:
+            method = "gmin stepping"
+            z = z0
+            for gshunt in [10.0**-k for k in range(2, 13)] + [0.0]:
+                z, its, ok = self.newton(z, mode, b, t, gshunt)
+                total += its
+                if not ok:
+                    break
+        if not ok:
+            method = "source stepping"
+            z, lam, step = z0.copy(), 0.0, 0.1
+            ok = True
+            while lam < 1.0:
+                trial_lam = min(1.0, lam + step)
+                bl = self.rhs(mode, trial_lam * u, x)
+                trial, its, good = self.newton(z, mode, bl, t)
+                total += its
+                if good:
+                    z, lam = trial, trial_lam
+                    step = min(step * 2, 0.5)
+                else:
+                    step /= 4
+                    if step < 1e-6:
+                        ok = False
+                        break
+        if not ok:
+            raise NoOperatingPoint(
+                "no operating point (for a mechanism: no static equilibrium): Newton's method, gmin stepping "
+                "and source stepping all failed "
+                f"({total} iterations)",
+                SourceLocation(self.netlist.path, 0),
+            )
+        F, _ = self.evaluate(z, mode, b, t)
+        return self._point(z, u, total, float(np.max(np.abs(F))) if F.size else 0.0, method)
+
+    def _point(
+        self, z: NDArray[np.float64], u: NDArray[np.float64], its: int, res: float, method: str
+    ) -> OperatingPoint:
+        voltages = {n: float(z[k]) for k, n in enumerate(self.nodes)}
+        currents = {key: float(z[k]) for key, k in self.branch_index.items() if "#" not in key}
+        for e in self.netlist.elements:
+            if e.key in currents:
+                continue
+            if e.kind is Kind.RESISTOR:
+                currents[e.key] = (self._v(z, e.nodes[0]) - self._v(z, e.nodes[1])) / e.value
+            elif e.kind is Kind.ISOURCE:
+                currents[e.key] = float(u[self.source_index[e.key]])
+            elif e.kind is Kind.VCCS:
+                c, d = e.control_nodes or (GROUND, GROUND)
+                currents[e.key] = e.value * (self._v(z, c) - self._v(z, d))
+            elif e.kind is Kind.CCCS:
+                currents[e.key] = e.value * float(z[self.branch_index[e.control_source or ""]])
+        for d in self.diodes:
+            vd = self._junction_from_z(d, z)
+            i, _ = diode_current(vd, d.isat, d.n)
+            currents[d.element.key] = i + (0.0 if d.charge_branch is None else float(z[d.charge_branch]))
+        for bh in self.behavioural:
+            if bh.branch is None:
+                args = np.array([0.0 if r is None else float(z[r]) for r in bh.refs])
+                currents[bh.element.key] = bh.behaviour.evaluate(args)[0]
+        inputs = {e.name: float(u[j]) for j, e in enumerate(self.sources)}
+        moved = {node: float(z[k]) for node, k in self.disp_index.items()}
+        return OperatingPoint(voltages, currents, inputs, its, res, method, z, moved)
+
+    def _v(self, z: NDArray[np.float64], node: str) -> float:
+        return 0.0 if node == GROUND else float(z[self.node_index[node]])
+
+    @staticmethod
+    def dc_value(e: Element) -> float:
+        """A source's value at the operating point (its DC value, as ngspice's ``.op``)."""
+        return float(e.value)
+
+    def states_at(self, point: OperatingPoint) -> NDArray[np.float64]:
+        """The state vector (capacitor charges, inductor currents, diode charges) at a point."""
+        z = point.z
+        x = [e.value * (self._v(z, e.nodes[0]) - self._v(z, e.nodes[1])) for e in self.capacitors]
+        x += [float(z[self.branch_index[e.key]]) for e in self.inductors]
+        for d in self.charged_diodes:
+            model = d.element.diode
+            assert model is not None
+            vd = self._junction_from_z(d, z)
+            i, g = diode_current(vd, d.isat, d.n)
+            x.append(diode_charge(vd, i, g, d.cjo, model.VJ, model.M, model.TT, model.FC)[0])
+        x += [float(z[k]) for k in self.disp_index.values()]
+        return np.array(x, dtype=float)
+
+    @property
+    def state_names(self) -> list[str]:
+        """``q(C1)``, ``i(L1)``, ``q(D1)`` in the order of the state vector."""
+        return (
+            [f"{state_prefix(e)}({e.name})" for e in self.capacitors]
+            + [f"{state_prefix(e)}({e.name})" for e in self.inductors]
+            + [f"q({d.element.name})" for d in self.charged_diodes]
+            + [f"x({node})" for node in self.disp_index]
+        )
+
+
+# ------------------------------------------------------------------ linearisation
+
+
+def operating_point(netlist: Netlist, at: Mapping[str, float] | None = None) -> OperatingPoint:
+    """The DC operating point of ``netlist`` (sources at their DC values, ``at`` overriding).
+
+    Parameters
+    ----------
+    netlist : Netlist
+    at : Mapping, optional
+        Source name → value (V or A) replacing its DC value.
+    """
+    circuit = NonlinearCircuit(netlist)
+    u = np.array([circuit.dc_value(e) for e in circuit.sources])
+    for name, value in (at or {}).items():
+        key = name.lower()
+        if key not in circuit.source_index:
+            raise NetlistError(
+                f"--at {name}: not an independent source of the netlist", SourceLocation(netlist.path, 0)
+            )
+        u[circuit.source_index[key]] = value
+    return circuit.operating_point(u)
+
+
+def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
+    """The linear netlist of small deviations about ``point``.
+
+    A diode becomes a conductance ``name.gd`` = dI/dV (gmin included) in
+    parallel with its incremental capacitance ``name`` = dQ/dV (omitted when
+    zero), behind ``name.rs`` when RS > 0; a behavioural source becomes one
+    controlled source per variable it reads (its partial derivative as gain),
+    named like the linear behavioural sources of the parser (``B1``,
+    ``B1.t2``...). Every other element is kept; ``time`` is frozen at 0.
+    """
+    circuit = NonlinearCircuit(netlist)
+    z = point.z
+    out: list[Element] = []
+    bh_of = {b.element.key: b for b in circuit.behavioural}
+    diode_of = {d.element.key: d for d in circuit.diodes}
+    for e in netlist.elements:
+        if e.kind is Kind.DIODE:
+            d = diode_of[e.key]
+            model = e.diode
+            assert model is not None
+            anode = e.nodes[0]
+            if model.RS > 0:
+                inner = f"{e.key}#anode"
+                out.append(
+                    Element(Kind.RESISTOR, f"{e.name}.rs", (e.nodes[0], inner), model.RS / e.value, e.loc)
+                )
+                anode = inner
+            vd = circuit._junction_from_z(d, z)
+            i, g = diode_current(vd, d.isat, d.n)
+            _, cap = diode_charge(vd, i, g, d.cjo, model.VJ, model.M, model.TT, model.FC)
+            out.append(Element(Kind.RESISTOR, f"{e.name}.gd", (anode, e.nodes[1]), 1.0 / g, e.loc))
+            if cap > 0:
+                out.append(Element(Kind.CAPACITOR, e.name, (anode, e.nodes[1]), cap, e.loc))
+        elif e.kind in (Kind.BVOLTAGE, Kind.BCURRENT):
+            out.extend(_linear_behavioural(bh_of[e.key], z, netlist))
+        else:
+            out.append(e)
+    for node in circuit.disp_index:
+        # the displacement x(n) = ∫ v(n) dt as a state: v(n) charges 1 F at node "x(n)", whose voltage is x(n)
+        loc = next(
+            b.element.loc
+            for b in circuit.behavioural
+            if any(r == DISPLACEMENT + node for _, r in b.behaviour.variables)
+        )
+        aux = f"x({node})"
+        out.append(Element(Kind.VCCS, f"{aux}.in", (GROUND, aux), 1.0, loc, control_nodes=(node, GROUND)))
+        out.append(Element(Kind.CAPACITOR, aux, (aux, GROUND), 1.0, loc))
+    return replace(netlist, elements=tuple(out))
+
+
+def _linear_behavioural(b: _Behavioural, z: NDArray[np.float64], netlist: Netlist) -> list[Element]:
+    e = b.element
+    args = np.array([0.0 if r is None else float(z[r]) for r in b.refs])
+    _, grad = b.behaviour.evaluate(args)
+    terms: list[tuple[Kind, float, tuple[str, str] | None, str | None]] = []
+    voltage = e.kind is Kind.BVOLTAGE
+    for (kind, ref), gk in zip(b.behaviour.variables, grad, strict=True):
+        if kind == "time" or gk == 0:
+            continue
+        if kind == "v":
+            terms.append((Kind.VCVS if voltage else Kind.VCCS, float(gk), (ref, GROUND), None))
+        elif ref.startswith(DISPLACEMENT):  # read from the integrator node x(n)
+            node = f"x({ref[len(DISPLACEMENT) :]})"
+            terms.append((Kind.VCVS if voltage else Kind.VCCS, float(gk), (node, GROUND), None))
+        else:
+            terms.append((Kind.CCVS if voltage else Kind.CCCS, float(gk), None, ref))
+    plus, minus = e.nodes
+    if not terms:
+        if voltage:  # a constant voltage: a short for deviations
+            return [Element(Kind.VCVS, e.name, (plus, minus), 1.0, e.loc, control_nodes=(minus, minus))]
+        return []
+    labels = [e.name] + [f"{e.name}.t{k}" for k in range(2, len(terms) + 1)]
+    if voltage:
+        chain = [plus] + [f"{e.key}.n{k}" for k in range(1, len(terms))] + [minus]
+        return [
+            Element(
+                kind,
+                label,
+                (chain[k], chain[k + 1]),
+                gain,
+                e.loc,
+                control_nodes=cn,
+                control_source=cs,
+                expression=e.expression,
+            )
+            for k, ((kind, gain, cn, cs), label) in enumerate(zip(terms, labels, strict=True))
+        ]
+    return [
+        Element(
+            kind,
+            label,
+            (plus, minus),
+            gain,
+            e.loc,
+            control_nodes=cn,
+            control_source=cs,
+            expression=e.expression,
+        )
+        for (kind, gain, cn, cs), label in zip(terms, labels, strict=True)
+    ]
+
+
+def default_outputs(netlist: Netlist) -> list[str]:
+    """Every node voltage of the netlist as written (no internal nodes), ``v(n)``."""
+    return [f"v({n})" for n in netlist.nodes]
+
+
+def point_text(point: OperatingPoint, netlist: Netlist) -> str:
+    """The operating point as a short report."""
+    lines = [
+        f"operating point ({point.method}, {point.iterations} Newton iterations, "
+        f"largest residual {point.residual:.3g}):"
+    ]
+    for node in netlist.nodes:
+        lines.append(f"  v({node}) = {point.voltages[node]:.12g}")
+    for node, value in point.displacements.items():
+        lines.append(f"  x({node}) = {value:.12g}")
+    for e in netlist.elements:
+        if e.key in point.currents:
+            lines.append(f"  i({e.name}) = {point.currents[e.key]:.12g}")
+    return "\n".join(lines) + "\n"
+
+
+def point_dict(point: OperatingPoint, netlist: Netlist) -> dict[str, object]:
+    """The operating point for ``--format json``."""
+    return {
+        "method": point.method,
+        "iterations": point.iterations,
+        "residual": point.residual,
+        "voltages": {f"v({n})": point.voltages[n] for n in netlist.nodes},
+        "displacements": {f"x({n})": v for n, v in point.displacements.items()},
+        "currents": {
+            f"i({e.name})": point.currents[e.key] for e in netlist.elements if e.key in point.currents
+        },
+        "inputs": dict(point.inputs),
+    }
+
+
+def linear_warnings(netlist: Netlist, point: OperatingPoint) -> tuple[Diagnostic, ...]:
+    """A note that the model is the linearisation at the operating point."""
+    return (
+        Diagnostic(
+            SourceLocation(netlist.path, 0),
+            f"nonlinear netlist: A, B, C, D are its linearisation at the operating point ({point.method}, "
+            f"residual {point.residual:.2g}), in deviations from it (simulate integrates the circuit itself)",
+        ),
+    )
+
+
+def linearised(
+    netlist: Netlist, outputs: Sequence[str] | None = None, at: Mapping[str, float] | None = None
+) -> tuple[Netlist, list[str]]:
+    """The linear netlist at the operating point (with a note among its warnings) and its outputs.
+
+    The default outputs are the node voltages of the netlist as written (the
+    linearisation's internal nodes are not outputs unless asked for).
+    """
+    point = operating_point(netlist, at)
+    lin = linearise(netlist, point)
+    lin = replace(lin, warnings=lin.warnings + linear_warnings(netlist, point))
+    return lin, list(outputs) if outputs else default_outputs(netlist)
+
+
+def solve_states(netlist: Netlist, x: Sequence[float], u: Sequence[float], t: float = 0.0) -> OperatingPoint:
+    """The network's solution with the states ``x`` and inputs ``u`` given (``state`` mode)."""
+    circuit = NonlinearCircuit(netlist)
+    return circuit.operating_point(np.asarray(u, float), t, "state", np.asarray(x, float))
