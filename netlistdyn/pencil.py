@@ -20,6 +20,7 @@ from A is taken to the pencil:
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -174,7 +175,7 @@ def _deflate(G: sp.csr_array, E: sp.csr_array) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class _Prepared:
-    """The deflated pencil in complex arithmetic, with its element-value part."""
+    """One diagonal block of the pencil in complex arithmetic, with its element-value part."""
 
     G: sp.csr_array
     E: sp.csr_array
@@ -183,17 +184,130 @@ class _Prepared:
     data_coo: sp.coo_array  # the element-value entries of G
 
 
-def _prepare(pencil: Pencil) -> _Prepared:
-    rows, cols = _deflate(pencil.G, pencil.E)
+def _cut(m: sp.csr_array, rows: np.ndarray, cols: np.ndarray) -> sp.csr_array:
+    out = sp.csr_array(sp.csr_array(m)[rows][:, cols], dtype=complex)
+    out.eliminate_zeros()
+    return out
 
-    def cut(m: sp.csr_array) -> sp.csr_array:
-        out = sp.csr_array(sp.csr_array(m)[rows][:, cols], dtype=complex)
-        out.eliminate_zeros()
-        return out
 
-    G, E = cut(pencil.G), cut(pencil.E)
-    data = cut(pencil.G_data) if pencil.G_data is not None else G
+def _block(G: sp.csr_array, E: sp.csr_array, data: sp.csr_array) -> _Prepared:
     return _Prepared(G, E, sp.coo_array(G), sp.coo_array(E), sp.coo_array(data))
+
+
+def _prepare(pencil: Pencil) -> _Prepared:
+    """The deflated pencil as one block."""
+    rows, cols = _deflate(pencil.G, pencil.E)
+    G, E = _cut(pencil.G, rows, cols), _cut(pencil.E, rows, cols)
+    data = _cut(pencil.G_data, rows, cols) if pencil.G_data is not None else G
+    return _block(G, E, data)
+
+
+def _diagonal_blocks(G: sp.csr_array, E: sp.csr_array) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """Block triangular form of G + λE: (rows, columns) of each diagonal block, None if none exists.
+
+    A perfect matching of the sparsity pattern puts a non-zero on the
+    diagonal; the strongly connected parts of the graph it induces are the
+    diagonal blocks of a block triangular permutation (Dulmage–Mendelsohn).
+    det(G + λE) is the product of the blocks' determinants — exactly, since
+    the zeros outside the blocks are structural — so every eigenvalue lives
+    in one block, where its eigenvector has no rounding-level components in
+    the other parts (which make a componentwise backward error meaningless)
+    and where a root far from the rest is often alone.
+    """
+    from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
+
+    n = G.shape[0]
+    pattern = sp.csr_matrix((abs(G) + abs(E)) > 0, dtype=np.int8)
+    if n == 0 or pattern.shape[1] != n:
+        return None
+    match = maximum_bipartite_matching(pattern, perm_type="column")
+    if np.any(match < 0):
+        return None
+    row_of = np.empty(n, dtype=int)
+    row_of[match] = np.arange(n)
+    coo = sp.coo_array(pattern)
+    graph = sp.csr_matrix((np.ones(coo.nnz), (coo.row, row_of[coo.col])), shape=(n, n))
+    count, label = connected_components(graph, directed=True, connection="strong")
+    order = np.argsort(label, kind="stable")
+    bounds = np.searchsorted(label[order], np.arange(count + 1))
+    return [(order[bounds[b] : bounds[b + 1]], match[order[bounds[b] : bounds[b + 1]]]) for b in range(count)]
+
+
+def _factor_zeros(
+    G: sp.csr_array, E: sp.csr_array, data: sp.csr_array
+) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
+    """Divide the topology's zero eigenvalues out of the pencil.
+
+    A column of G + λE with no entry in G (a flux or a charge the topology
+    conserves) is λ times E's column: det(G + λE) = λ·det(G' + λE') with
+    that column moved from E to G (its unknown becomes λ times the old one,
+    the time derivative). Likewise for a row. The remaining pencil has the
+    same non-zero eigenvalues without the exact zero beside them, which
+    would otherwise attract Newton's method from a small starting value.
+    Moved entries are element values, so they join G's data part.
+    """
+    G, E, data = sp.lil_array(G), sp.lil_array(E), sp.lil_array(data)
+    for _ in range(G.shape[0]):
+        g_cols = np.asarray(abs(sp.csr_array(G)).sum(axis=0)).ravel()
+        e_cols = np.asarray(abs(sp.csr_array(E)).sum(axis=0)).ravel()
+        g_rows = np.asarray(abs(sp.csr_array(G)).sum(axis=1)).ravel()
+        e_rows = np.asarray(abs(sp.csr_array(E)).sum(axis=1)).ravel()
+        cols = np.flatnonzero((g_cols == 0) & (e_cols > 0))
+        rows = np.flatnonzero((g_rows == 0) & (e_rows > 0))
+        if cols.size:
+            j = int(cols[0])
+            G[:, [j]] = E[:, [j]]
+            data[:, [j]] = E[:, [j]]
+            E[:, [j]] = 0
+        elif rows.size:
+            i = int(rows[0])
+            G[[i], :] = E[[i], :]
+            data[[i], :] = E[[i], :]
+            E[[i], :] = 0
+        else:
+            break
+    out = []
+    for m in (G, E, data):
+        m = sp.csr_array(m)
+        m.eliminate_zeros()
+        out.append(m)
+    return out[0], out[1], out[2]
+
+
+def _blocks(pencil: Pencil) -> tuple[list[_Prepared], list[CheckedEigenvalue]]:
+    """The pencil's diagonal blocks with finite eigenvalues, and the roots of its 1 × 1 blocks.
+
+    A 1 × 1 block g + λe is the root −g/e, exact up to the division's
+    rounding and the values' own; one with g = 0 is a zero eigenvalue
+    (left to :func:`structural_zeros`), one with e = 0 has none.
+    """
+    rows, cols = _deflate(pencil.G, pencil.E)
+    G, E = _cut(pencil.G, rows, cols), _cut(pencil.E, rows, cols)
+    data = _cut(pencil.G_data, rows, cols) if pencil.G_data is not None else G
+    G, E, data = _factor_zeros(G, E, data)
+    parts = _diagonal_blocks(G, E)
+    if parts is None:
+        return [_block(G, E, data)], []
+    blocks: list[_Prepared] = []
+    roots: list[CheckedEigenvalue] = []
+    for r, c in parts:
+        e_block = _cut(E, r, c)
+        if e_block.nnz == 0:
+            continue  # no finite eigenvalue
+        g_block, d_block = _cut(G, r, c), _cut(data, r, c)
+        if len(r) > 1:
+            blocks.append(_block(g_block, e_block, d_block))
+            continue
+        g, e = complex(g_block.toarray()[0, 0]), complex(e_block.toarray()[0, 0])
+        if g == 0:
+            continue
+        lam = complex(-g.real / e.real)
+        # Relative changes eps of e (an element value) and of g (when it is one) move λ by eps·|λ|
+        # each; the division rounds by eps/2.
+        kappa = abs(lam) * (1 + (d_block.nnz > 0))
+        bar = SAFETY * EPS * kappa + EPS * abs(lam)
+        roots.append(CheckedEigenvalue(lam, bar, bar, 0.0, 0.0, refined=False))
+    return blocks, roots
 
 
 def _bars(
@@ -428,11 +542,13 @@ def _finish(
     if not residual.exact:
         kappa_re = kappa_im = kappa_data
     data = SAFETY * EPS
+    # The reported value is a double: its own rounding (half an ulp of each part, and as much
+    # again for a reference rounded the same way) belongs in the bar too.
     return CheckedEigenvalue(
         lam,
-        data * kappa_data + computation,
-        data * kappa_re + computation,
-        data * kappa_im + computation,
+        data * kappa_data + computation + EPS * abs(lam),
+        data * kappa_re + computation + EPS * abs(lam.real),
+        data * kappa_im + computation + EPS * abs(lam.imag),
         eta,
         refined=lam != lam0,
     )
@@ -447,15 +563,21 @@ def check_spectrum(
 ) -> list[tuple[int, CheckedEigenvalue | None]]:
     """Verify and refine a whole spectrum on the pencil.
 
-    Each eigenvalue of A starts Newton's method. When A itself is poor — at
-    wide spreads the reduction can misplace an eigenvalue by orders of
-    magnitude, and Newton's method then lands on a neighbour that another
-    start already found — so the pencil's own QZ eigenvalues (equilibrated,
-    for pencils up to :data:`QZ_LIMIT`) are starting values too. Verified
-    eigenvalues equal within their bars form one group, counted as often as
-    QZ found it (the pencil's own multiplicity), or, where QZ did not see
-    it (QZ loses the largest roots to infinity), as often as A's starts
-    reached it without jumping.
+    The pencil is split into its diagonal blocks (block triangular form:
+    det(G + λE) is their product); 1 × 1 blocks give their root directly.
+    Each eigenvalue of A starts Newton's method on the block where it
+    settles closest to its start. When A itself is poor — at wide spreads
+    the reduction can misplace an eigenvalue by orders of magnitude, and
+    Newton's method then lands on a neighbour that another start already
+    found — the blocks' own QZ eigenvalues (equilibrated, for blocks up to
+    :data:`QZ_LIMIT`) are starting values too. Verified eigenvalues equal
+    within their bars form one group, counted as often as QZ found it (the
+    pencil's own multiplicity), or, where QZ did not see it, as often as A's
+    starts reached it without jumping. When fewer eigenvalues are verified
+    than A has (less the zeros the topology guarantees), QZ is repeated on
+    the frequency-scaled blocks (G, σE) over the range of σ the entries
+    span, which resolves roots that the unscaled QZ sends to zero or to
+    infinity (a 1e-17 1/s root beside a 1e20 1/s one).
 
     Parameters
     ----------
@@ -470,29 +592,64 @@ def check_spectrum(
     -------
     list of (int, CheckedEigenvalue or None)
         One entry per eigenvalue of A: ``(-1, verified)``, or ``(k, None)``:
-        input k keeps its own estimate.
+        input k keeps its own estimate (the smallest of A's eigenvalues
+        first, which the caller's structural zeros replace).
     """
-    prep = _prepare(pencil)
+    blocks, roots = _blocks(pencil)
     n = len(values)
     bounds = np.zeros(n) if bounds is None else np.asarray(bounds, dtype=float)
-    exact = (prep.G.nnz + prep.E.nnz) * max(n, 1) <= EXACT_RESIDUAL_BUDGET
-    from_a = [_checked_or_none(prep, v, exact) for v in values]
+    nnz = sum(b.G.nnz + b.E.nnz for b in blocks)
+    exact = nnz * max(n, 1) <= EXACT_RESIDUAL_BUDGET
+    from_a = [_on_blocks(blocks, v, _finite(bounds[k]), exact) for k, v in enumerate(values)]
     jumped = [
         r is not None and abs(r.value - values[k]) > 2 * max(r.abs_error, _finite(bounds[k]))
         for k, r in enumerate(from_a)
     ]
-    from_qz: list[CheckedEigenvalue] = []
-    if prep.G.shape[0] <= QZ_LIMIT:
-        from_qz = [r for r in (_checked_or_none(prep, v, exact) for v in _qz(prep)) if r is not None]
-    groups = _group(from_a, from_qz)
+    from_qz: list[CheckedEigenvalue] = list(roots)
+    for block in blocks:
+        if block.G.shape[0] <= QZ_LIMIT:
+            from_qz += [r for r in (_checked_or_none(block, v, exact) for v in _qz(block)) if r is not None]
+    zeros = structural_zeros(pencil)
+    if zeros:
+        # The topology's zeros are exact and counted by the caller: a start that converged to
+        # 0 (within its bars) found one of them, not a root of its own.
+        from_a = [None if r is not None and abs(r.value) <= r.abs_error else r for r in from_a]
+        from_qz = [r for r in from_qz if abs(r.value) > r.abs_error]
     # An A start counts towards a root's multiplicity only when it did not jump there and A's own
     # bound makes its value meaningful (a bound above |λ| says A did not resolve it).
     reliable = [
         r is not None and not jumped[k] and bool(np.isfinite(bounds[k])) and bounds[k] < abs(values[k])
         for k, r in enumerate(from_a)
     ]
+    plan = _plan(from_a, from_qz, reliable, n)
+    if sum(p[2] for p in plan) + zeros < n:
+        known = [r for r in from_a if r is not None] + from_qz
+        extra = _sweep(blocks, known, exact)
+        if extra:
+            plan = _plan(from_a, from_qz + extra, reliable, n)
+    slots: list[tuple[int, CheckedEigenvalue | None]] = []
+    done: set[int] = set()
+    for ks, qs, count, represented, _ in plan:
+        if count <= 0:
+            continue
+        members = [from_a[k] for k in ks] + qs
+        best = min((r for r in members if r is not None), key=lambda r: r.abs_error)
+        slots.extend((-1, best) for _ in range(count))
+        done |= set(represented)
+    spare = sorted((k for k in range(n) if k not in done), key=lambda k: abs(values[k]))
+    slots.extend((k, None) for k in spare[: n - len(slots)])
+    return slots
+
+
+def _plan(
+    from_a: list[CheckedEigenvalue | None], from_qz: list[CheckedEigenvalue], reliable: list[bool], n: int
+) -> list[tuple[list[int], list[CheckedEigenvalue], int, list[int], int]]:
+    """Groups of equal verified eigenvalues with their counts, at most n in all.
+
+    Each entry: (A starts, QZ results, count, A starts it stands for, evidence).
+    """
     plan = []
-    for ks, qs in groups:
+    for ks, qs in _group(from_a, from_qz):
         kept = [k for k in ks if reliable[k]]
         # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
         # otherwise A's reliable starts that reached it.
@@ -504,18 +661,71 @@ def check_spectrum(
         j = max(range(len(plan)), key=lambda i: (plan[i][4] == 0, plan[i][2] > plan[i][4], plan[i][2]))
         ks, qs, count, represented, evidence = plan[j]
         plan[j] = (ks, qs, count - 1, represented[: count - 1], evidence)
-    slots: list[tuple[int, CheckedEigenvalue | None]] = []
-    done: set[int] = set()
-    for ks, qs, count, represented, _ in plan:
-        if count <= 0:
+    return plan
+
+
+def _on_blocks(
+    blocks: list[_Prepared], value: complex, bound: float, exact: bool
+) -> CheckedEigenvalue | None:
+    """:func:`check_eigenvalue` on the block where ``value`` settles closest to itself (in its bars)."""
+    best: tuple[float, CheckedEigenvalue] | None = None
+    for block in blocks:
+        result = _checked_or_none(block, value, exact)
+        if result is None:
             continue
-        members = [from_a[k] for k in ks] + qs
-        best = min((r for r in members if r is not None), key=lambda r: r.abs_error)
-        slots.extend((-1, best) for _ in range(count))
-        done |= set(represented)
-    spare = [k for k in range(n) if k not in done]
-    slots.extend((k, None) for k in spare[: n - len(slots)])
-    return slots
+        distance = abs(result.value - value) / max(result.abs_error, bound, EPS * abs(value), 1e-300)
+        if best is None or distance < best[0]:
+            best = (distance, result)
+    return None if best is None else best[1]
+
+
+#: Frequency scalings σ of the QZ sweep are this many decades apart.
+SWEEP_STEP = 3
+#: QZ eigenvalues μ of (G, σE) are taken as starting values σμ when 10^-w <= |μ| <= 10^w, w = this.
+SWEEP_WINDOW = 2.5
+
+
+def _sweep(blocks: list[_Prepared], known: list[CheckedEigenvalue], exact: bool) -> list[CheckedEigenvalue]:
+    """Eigenvalues not yet found, from QZ on the frequency-scaled blocks (G, σE).
+
+    QZ's error is relative to the pencil's norm in its own scaling, so a
+    root far from the bulk of the spectrum comes out as 0 or ∞. Scaling E by
+    σ brings roots near |λ| = σ to order one; σ steps over the range the
+    ratios of the entries span, each QZ contributing the eigenvalues within
+    its window, each verified by Newton's method on the block. A result
+    equal (within the bars) to one already known, or to another found here,
+    is dropped: the sweep adds roots, never multiplicity.
+    """
+    found: list[CheckedEigenvalue] = []
+    for block in blocks:
+        if block.G.shape[0] > QZ_LIMIT:
+            continue
+        g = np.abs(block.G.data[block.G.data != 0])
+        e = np.abs(block.E.data[block.E.data != 0])
+        if not (g.size and e.size):
+            continue
+        low = math.floor(math.log10(g.min() / e.max())) - SWEEP_STEP
+        high = math.ceil(math.log10(g.max() / e.min())) + SWEEP_STEP
+        starts: list[complex] = []
+        for power in range(low, high + 1, SWEEP_STEP):
+            sigma = 10.0**power
+            for mu in _qz(block, sigma, scaled=True):
+                if 10.0**-SWEEP_WINDOW <= abs(mu) <= 10.0**SWEEP_WINDOW:
+                    lam = sigma * mu
+                    if all(abs(lam - v) > 1e-8 * abs(lam) for v in starts):
+                        starts.append(lam)
+        for lam in starts:
+            if any(abs(lam - r.value) <= max(r.abs_error, 1e-8 * abs(lam)) for r in known + found):
+                continue
+            result = _checked_or_none(block, lam, exact)
+            if result is None:
+                continue
+            if abs(result.value) <= result.abs_error or any(
+                abs(result.value - r.value) <= r.abs_error + result.abs_error for r in known + found
+            ):
+                continue  # a zero (the caller's), or a root already known
+            found.append(result)
+    return found
 
 
 def _checked_or_none(prep: _Prepared, value: complex, exact: bool) -> CheckedEigenvalue | None:
@@ -554,19 +764,25 @@ def _group(
     return [(ks, qs) for ks, qs, _ in groups]
 
 
-def _qz(prep: _Prepared) -> list[complex]:
-    """Finite generalized eigenvalues of the (equilibrated) pencil, as extra starting values."""
-    g, e = prep.G.toarray(), prep.E.toarray()
+def _qz(prep: _Prepared, sigma: float = 1.0, scaled: bool = False) -> list[complex]:
+    """Finite non-zero generalized eigenvalues of the (equilibrated) pencil, as extra starting values.
+
+    With ``sigma``, those of (G, σE): μ with det(G + μσE) = 0, returned as
+    μ (``scaled``) or λ = σμ.
+    """
+    g, e = prep.G.toarray(), prep.E.toarray() * sigma
     scale_r = 1.0 / np.maximum(np.max(np.abs(g), axis=1), np.max(np.abs(e), axis=1)).clip(min=1e-300)
     g, e = g * scale_r[:, None], e * scale_r[:, None]
     scale_c = 1.0 / np.maximum(np.max(np.abs(g), axis=0), np.max(np.abs(e), axis=0)).clip(min=1e-300)
     g, e = g * scale_c[None, :], e * scale_c[None, :]
     try:
-        alpha, beta = sla.eigvals(-g, e, homogeneous_eigvals=True)
+        with np.errstate(all="ignore"):
+            alpha, beta = sla.eigvals(-g, e, homogeneous_eigvals=True)
     except (sla.LinAlgError, ValueError):
         return []
     finite = np.abs(beta) > 1e-14 * np.abs(alpha)
-    return [complex(v) for v in alpha[finite] / beta[finite] if v != 0]
+    mu = [complex(v) for v in alpha[finite] / beta[finite] if v != 0 and np.isfinite(v)]
+    return mu if scaled else [sigma * v for v in mu]
 
 
 def structural_zeros(pencil: Pencil) -> int:
