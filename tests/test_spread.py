@@ -121,6 +121,141 @@ def test_separated_tanks_are_marginally_stable():
     assert eig.verdict == "marginally stable"
 
 
+# Wide-spread reproducers of the 1000-network campaign (values log-uniform over 1e-15…1e6):
+# each was outside its bar or unverified before the pencil was split into its diagonal blocks.
+HUGE_ROOT_LOST = """a 1e16 root lost: A turned it into a second zero beside the inductor loop's
+Vin n1 0 1
+L0 n5 n2 204.14729345824961
+L1 n2 n5 4.2895365150662199e-15
+R2 n5 n2 465.13709890987417
+R3 n3 n4 2.4334133629360693e-12
+L4 n3 n1 20.373334620704419
+Rgn1 n1 0 203915.26764615934
+Rgn2 n2 0 0.0026162435793262691
+Rgn3 n3 0 3.8767566394885568e-09
+Rgn4 n4 0 4.3758690646705208e-11
+Rgn5 n5 0 61.118701663476351
+.end
+"""
+TINY_ROOT_AS_ZERO = """a 1e-17 root reported as an exact zero
+Vin n1 0 1
+L0 n4 0 33851.883027078802
+L1 0 n3 1.8464898987995243e-12
+L2 0 n1 2.6912297914178914e-10
+C3 n3 n4 3.1446070416514005e-06
+R4 n2 0 0.53427846688168235
+L5 n2 0 0.0025743905799220229
+Rgn1 n1 0 6.1927645376809358e-13
+Rgn2 n2 0 0.26636945584728156
+Rgn3 n3 0 0.11163691487299987
+Rgn4 n4 0 2.5661400345109738e-12
+G1 n2 n3 n1 n4 -445.60548292892287
+.end
+"""
+DECOUPLED_PART = """a 1e20 root whose eigenvector is exactly zero on a decoupled part
+Vin n1 0 1
+C0 n4 n5 1.6803360235837291e-06
+L1 n3 0 6.4401208564626516e-05
+L2 n4 0 423732.75580093154
+R3 n2 n4 3.9128709033033013e-15
+C4 n1 n3 207446.82034448819
+C5 0 n2 134944.68406302322
+Rgn1 n1 0 179458.4872276466
+Rgn2 n2 0 0.0031904826933913705
+Rgn3 n3 0 31.559570178119372
+Rgn4 n4 0 0.20127707626908328
+Rgn5 n5 0 2.455345153176638e-15
+G1 n5 n4 n4 0 236.61278655468166
+.end
+"""
+ZERO_ATTRACTS_NEWTON = """Newton's method from a 1e-11 root slides to the neighbouring exact zero
+Vin n1 0 1
+C0 0 n1 1.1905676998125418e-14
+R1 n1 n4 27368.984874644349
+R2 n3 n2 0.054030980768460378
+R3 n3 n4 2.7278525164257526e-11
+L4 n3 n2 18856.953384934204
+L5 0 n1 5.4435439079692328e-10
+L6 n1 n2 9.3716127279515088e-05
+C7 0 n4 11410.218537531435
+Rgn1 n1 0 0.00056766634612005025
+Rgn2 n2 0 1.1370190213002655e-15
+Rgn3 n3 0 3.6680847739211736e-05
+Rgn4 n4 0 0.034148475464243537
+K1 L4 L5 0.34561222249045848
+.end
+"""
+THREE_FAKE_ZEROS = """three roots of 1e-20 to 1e-2 reported as zeros
+Vin n1 0 1
+L0 0 n1 3.4902471352773418e-15
+L1 n4 n3 37942.805733128334
+C2 n3 n2 0.0035637458468659108
+C3 0 n1 1.4330802975524535
+R4 n1 n4 3.3503936840961292e-15
+C5 n3 n1 3.0500784081738978e-14
+C6 n4 n2 2658.1697217981946
+L7 0 n3 10099.548794916138
+Rgn1 n1 0 3.9087177414132521e-07
+Rgn2 n2 0 0.02678799347526175
+Rgn3 n3 0 85.636653178971841
+Rgn4 n4 0 0.58507007577847769
+.end
+"""
+ONE_ENTRY_ROW = """an inductor across the source: its row of the circuit equations has one entry
+Vin n1 0 1
+L0 0 n1 7.1392677404591462e-09
+R1 0 n2 6.4427846237596633e-10
+L2 n2 n3 15.542037400736744
+C3 n1 n3 2.7942321489954445
+Rgn1 n1 0 0.0030114458690201672
+Rgn2 n2 0 1742.2857517654977
+Rgn3 n3 0 4.2932890933281691e-10
+.end
+"""
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        HUGE_ROOT_LOST,
+        TINY_ROOT_AS_ZERO,
+        DECOUPLED_PART,
+        ZERO_ATTRACTS_NEWTON,
+        THREE_FAKE_ZEROS,
+        ONE_ENTRY_ROW,
+    ],
+    ids=[
+        "huge-root-lost",
+        "tiny-root-as-zero",
+        "decoupled-part",
+        "zero-attracts-newton",
+        "three-fake-zeros",
+        "one-entry-row",
+    ],
+)
+def test_wide_spread_reproducers_within_bars(text):
+    """Every eigenvalue within its own bar of det(G + sC)'s exact roots, and the exact verdict.
+
+    - huge root lost: exact {0, −2.2405855548485e-12, −1.259401672729e16}; A returned 0 twice (the
+      loop L0–L1 conserves one flux) and lost −1.26e16; QZ on the scaled circuit equations finds it.
+    - tiny root as zero: exact roots include −7.5804942149e-17 beside an exact 0 (L2 across the
+      source); A's second zero was printed as 0 ± 3e-72.
+    - decoupled part: −9.345145607497812e19 was left unverified (bound from A, 3 ulp off): on the
+      whole pencil, rounding on the decoupled part (L1, C4, Rgn3) made every backward error 1.
+    - zero attracts Newton: exact {0, −1.2132586506e-11, −2.2052207167e-9, −2.3934646694}; QZ's 2e-37
+      was verified as a second zero, the verdict was "unstable" (the coupled L5 conserves a flux).
+    - three fake zeros: exact roots −6.973833229e-20, −0.0107716591371, −0.0140435374154 were 0.
+    - one-entry row: −833580183.551141 was left unverified: L0's branch law L0·i' = 0 is a
+      one-entry row whose rounding-level component made every backward error 1.
+    """
+    netlist, _, eig = _analyse(text, ["v(n1)"])
+    exact = exact_natural_frequencies(netlist)
+    _assert_within_bars(eig.modes, exact)
+    expected = expected_verdict(exact)
+    assert expected is not None
+    assert eig.verdict == expected
+
+
 @pytest.mark.parametrize("sign", [1, -1])
 def test_tiny_damping_ratio_has_the_right_sign(sign):
     """Damping ratio 5e-17 at 1e10 rad/s: far below eps·|λ|, but the real part is well conditioned."""
