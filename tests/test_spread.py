@@ -213,6 +213,24 @@ Rgn3 n3 0 4.2932890933281691e-10
 .end
 """
 
+DEEP_VECTOR = """eigenvector components 30 decades apart (a 1.3 fF charge beside a 1.4 kF one)
+Vin n1 0 1
+L0 n4 0 315.4528448517392
+C1 n2 n1 1.0754930326146144e-08
+C2 0 n1 0.034969182251803517
+C3 n2 n4 1382.2108479569297
+C4 n2 n3 1.2722954061235738e-15
+R5 n1 0 0.0029145764277510602
+R6 n2 n4 449197.2556598846
+R7 n1 n3 3.036641920360237e-05
+Rgn1 n1 0 0.00010539737864536599
+Rgn2 n2 0 1.0624647721634858e-15
+Rgn3 n3 0 6.7428772453702396e-06
+Rgn4 n4 0 0.76840293375307767
+G1 n1 n4 n4 0 -342.11988907160816
+.end
+"""
+
 
 @pytest.mark.parametrize(
     "text",
@@ -223,6 +241,7 @@ Rgn3 n3 0 4.2932890933281691e-10
         ZERO_ATTRACTS_NEWTON,
         THREE_FAKE_ZEROS,
         ONE_ENTRY_ROW,
+        DEEP_VECTOR,
     ],
     ids=[
         "huge-root-lost",
@@ -231,6 +250,7 @@ Rgn3 n3 0 4.2932890933281691e-10
         "zero-attracts-newton",
         "three-fake-zeros",
         "one-entry-row",
+        "deep-vector",
     ],
 )
 def test_wide_spread_reproducers_within_bars(text):
@@ -247,6 +267,8 @@ def test_wide_spread_reproducers_within_bars(text):
     - three fake zeros: exact roots −6.973833229e-20, −0.0107716591371, −0.0140435374154 were 0.
     - one-entry row: −833580183.551141 was left unverified: L0's branch law L0·i' = 0 is a
       one-entry row whose rounding-level component made every backward error 1.
+    - deep vector: exact −0.2484487319703249 was lost (−9.2311215596266e-6 reported twice): its
+      eigenvector has components 1e-31 of its largest, which a double vector cannot resolve.
     """
     netlist, _, eig = _analyse(text, ["v(n1)"])
     exact = exact_natural_frequencies(netlist)
