@@ -7,6 +7,11 @@ no error estimate computed from A alone can see. The branch laws, on the
 other hand, hold the element values themselves. So each eigenvalue λ found
 from A is taken to the pencil:
 
+* the pencil is first split into the diagonal blocks of its block
+  triangular form (det(G + λE) is their product, exactly), with the zeros
+  the topology guarantees divided out; a 1 × 1 block is its root −g/e, and
+  each eigenvalue is checked on its own block, where its eigenvector has no
+  rounding-level components elsewhere;
 * Newton's method on det(G + λE) = 0 (two-sided inverse iteration with an
   equilibrated LU of G + λE) refines λ, and is kept only when it lowers the
   componentwise backward error — the refinement is never worse than its
@@ -15,7 +20,10 @@ from A is taken to the pencil:
   relative change of the element values that makes λ exact — and the
   condition numbers of λ's real and imaginary parts under relative changes
   of every entry give error bars that cover the reduction, the eigensolver
-  and the rounding of the values themselves: |δ Re λ| ≤ (η + eps)·κ_re.
+  and the rounding of the values themselves: |δ Re λ| ≤ (η + eps)·κ_re;
+* roots that A lost (a 1e20 1/s root beside 1e-17 1/s ones, turned into
+  a zero or missing) are found by QZ on the blocks, repeated over frequency
+  scalings (G, σE) when the count falls short.
 """
 
 from __future__ import annotations
@@ -34,8 +42,9 @@ from .model import Pencil
 EPS = float(np.finfo(float).eps)
 #: Newton steps at most per eigenvalue (convergence is quadratic for simple eigenvalues).
 NEWTON_STEPS = 6
-#: Pencils up to this size are factorised densely (LAPACK), larger ones with SuperLU.
-DENSE_PENCIL = 300
+#: Pencils up to this size are factorised densely (LAPACK), larger ones with SuperLU (a ladder's
+#: pencil is banded: SuperLU is ten times faster than LAPACK at 150 unknowns).
+DENSE_PENCIL = 50
 #: First-order error bars are multiplied by this safety factor.
 SAFETY = 4.0
 
@@ -113,7 +122,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def _pair(
-    G: sp.csr_array, E: sp.csr_array, lam: complex, start: tuple[np.ndarray, np.ndarray]
+    G: sp.csr_array,
+    E: sp.csr_array,
+    lam: complex,
+    start: tuple[np.ndarray, np.ndarray],
+    nudged: bool = False,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """Right and left (near-)null vectors of G + λE by two steps of inverse iteration."""
     matrix = sp.csr_array(G + lam * E)
@@ -121,7 +134,11 @@ def _pair(
         factor = _Factor(matrix)
     except ZeroDivisionError:
         if matrix.shape[0] > DENSE_PENCIL:
-            return None
+            if lam == 0 or nudged:
+                return None
+            # λ is an eigenvalue to working precision; inverse iteration from a neighbour finds
+            # the same vectors (Newton's method then starts from λ itself).
+            return _pair(G, E, lam * (1 + 16 * EPS), start, nudged=True)
         # λ is an eigenvalue to working precision: the singular vectors of the last singular value.
         dense = matrix.toarray()
         if not np.all(np.isfinite(dense)):
