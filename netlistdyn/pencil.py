@@ -674,12 +674,14 @@ def check_spectrum(
         r is not None and not jumped[k] and bool(np.isfinite(bounds[k])) and bounds[k] < abs(values[k])
         for k, r in enumerate(from_a)
     ]
-    plan = _plan(from_a, from_qz, reliable, n)
+    # The topology's zeros leave at most n − zeros non-zero roots (a QZ start near such a zero
+    # that Newton's method carried to a small neighbour must not count that neighbour twice).
+    plan = _plan(from_a, from_qz, reliable, n - zeros)
     if sum(p[2] for p in plan) + zeros < n:
         known = [r for r in from_a if r is not None] + from_qz
         extra = _sweep(blocks, known, exact)
         if extra:
-            plan = _plan(from_a, from_qz + extra, reliable, n)
+            plan = _plan(from_a, from_qz + extra, reliable, n - zeros)
     slots: list[tuple[int, CheckedEigenvalue | None]] = []
     done: set[int] = set()
     for ks, qs, count, represented, _ in plan:

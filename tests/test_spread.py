@@ -231,6 +231,20 @@ G1 n1 n4 n4 0 -342.11988907160816
 .end
 """
 
+COUNTED_TWICE = """a QZ start at the conserved charge's zero carried to its 4e-17 neighbour
+Vin n1 0 1
+L0 n1 n2 1501.7340706528385
+R1 n1 n2 0.00060773151230606663
+L2 n1 n2 115.64248835939351
+R3 n3 n2 2.0809112646934981e-14
+R4 n1 n3 4.2411744299740467e-15
+L5 n2 n3 3.2201292236226243e-15
+Rgn1 n1 0 1.0252595791830705
+Rgn2 n2 0 5.876357942779738e-07
+Rgn3 n3 0 4.6822627732110012e-05
+.end
+"""
+
 
 @pytest.mark.parametrize(
     "text",
@@ -242,6 +256,7 @@ G1 n1 n4 n4 0 -342.11988907160816
         THREE_FAKE_ZEROS,
         ONE_ENTRY_ROW,
         DEEP_VECTOR,
+        COUNTED_TWICE,
     ],
     ids=[
         "huge-root-lost",
@@ -251,6 +266,7 @@ G1 n1 n4 n4 0 -342.11988907160816
         "three-fake-zeros",
         "one-entry-row",
         "deep-vector",
+        "counted-twice",
     ],
 )
 def test_wide_spread_reproducers_within_bars(text):
@@ -269,6 +285,8 @@ def test_wide_spread_reproducers_within_bars(text):
       one-entry row whose rounding-level component made every backward error 1.
     - deep vector: exact −0.2484487319703249 was lost (−9.2311215596266e-6 reported twice): its
       eigenvector has components 1e-31 of its largest, which a double vector cannot resolve.
+    - counted twice: exact {0, −3.949906484251017e-17, −6.462197776624877}; −3.9e-17 was reported
+      twice (a QZ start at the structural zero went to it) and the verdict was "asymptotically stable".
     """
     netlist, _, eig = _analyse(text, ["v(n1)"])
     exact = exact_natural_frequencies(netlist)
