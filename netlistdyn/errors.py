@@ -19,14 +19,15 @@ class SourceLocation:
     path : str
         File name as given by the user (or ``"<string>"``).
     line : int
-        1-based physical line number of the start of the logical line.
+        1-based physical line number of the start of the logical line; 0 for the
+        file as a whole (printed as ``path`` alone, not ``path:0``).
     """
 
     path: str
     line: int
 
     def __str__(self) -> str:
-        return f"{self.path}:{self.line}"
+        return f"{self.path}:{self.line}" if self.line > 0 else self.path
 
 
 UNKNOWN_LOCATION = SourceLocation("<netlist>", 0)

@@ -184,13 +184,13 @@ TRNOISE = "V1 a 0 DC 0 TRNOISE(1n 1n 0 0)\nR1 a b 1k\nC1 b 0 1u\n.tran 1u 1m\n"
 netlist("trnoise_simulate", TRNOISE, 2, "random waveform", args=["simulate", "{file}"])
 
 # Top-level files that are not netlists.
-raw("binary_top.cir", bytes(range(256)) * 4, ["analyze", "{file}"], 1, "{file}:0", "not a text file")
+raw("binary_top.cir", bytes(range(256)) * 4, ["analyze", "{file}"], 1, "{file}", "not a text file")
 raw(
     "nul_bytes.cir",
     b"title\nV1 a 0 1\x00\nR1 a 0 1\n",
     ["analyze", "{file}"],
     1,
-    "{file}:0",
+    "{file}",
     "not a text file",
 )
 raw("empty.cir", b"", ["analyze", "{file}"], 1, "{file}", "no element")
