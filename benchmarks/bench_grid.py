@@ -21,8 +21,9 @@ import os
 import resource
 import subprocess
 import sys
-import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -91,35 +92,39 @@ NGSPICE_TIGHT = ".options reltol=1e-9 abstol=1e-15 vntol=1e-12 chgtol=1e-20\n"
 
 
 def child(args: list[str], timeout: float) -> tuple[dict | None, float, float, str]:
-    """Run a child; (its JSON line or None, CPU s, wall s, status)."""
+    """Run a child limited to ``timeout`` CPU seconds (the machine is shared: wall time is not
+    the measure); (its JSON line or None, CPU s, wall s, status)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    try:
-        done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=timeout, check=False)
-    except subprocess.TimeoutExpired:
-        return None, float("nan"), time.perf_counter() - start, "timeout"
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_CPU, (int(timeout), int(timeout) + 5))
+
+    done = subprocess.run(args, capture_output=True, text=True, env=env, preexec_fn=limit, check=False)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if done.returncode < 0 or cpu >= timeout:
+        return None, cpu, wall, f"stopped at the {timeout:g} s CPU limit"
     lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
     report = json.loads(lines[-1]) if lines else None
     status = "ok" if done.returncode == 0 else f"exit {done.returncode}"
     return report, cpu, wall, status
 
 
-def ngspice(netlist_text: str, probes: list[str], work: Path, tight: bool, timeout: float) -> tuple:
+def ngspice(netlist_text: str, probes: list[str], work: Path, key: str, tight: bool, timeout: float) -> tuple:
     """Batch ngspice on the grid; (outputs on the grid or None, CPU, wall, status)."""
     body = netlist_text.replace(".end\n", "")
     if tight:
         body = body.replace(".tran 1e-11 1e-08", ".tran 1e-11 1e-8 0 1e-13") + NGSPICE_TIGHT
-    data = work / f"ng_{'tight' if tight else 'default'}.out"
+    data = work / f"{key}.out"
     body += ".control\nset wr_singlescale\nset wr_vecnames\noption numdgt=16\nrun\n"
     body += f"wrdata {data} " + " ".join(f"v({p})" for p in probes) + "\n.endc\n.end\n"
-    deck = work / f"ng_{'tight' if tight else 'default'}.cir"
+    deck = work / f"{key}_deck.cir"
     deck.write_text(body)
     _, cpu, wall, status = child(["ngspice", "-b", str(deck)], timeout)
-    if status == "timeout" or not data.exists():
+    if status.startswith("stopped") or not data.exists():
         return None, cpu, wall, status
     status = "ok"  # batch ngspice exits 1 after a .control block without quit
     table = np.loadtxt(data, skiprows=1)
@@ -132,74 +137,115 @@ def ngspice(netlist_text: str, probes: list[str], work: Path, tight: bool, timeo
     )
 
 
+RUNS = ("ref", "ours", "ngspice", "tight", "radau")
+REFERENCE_RTOL = "1e-12"
+
+
+def stored_run(store: Path, key: str, make: Callable[[], tuple]) -> dict:
+    """The stored record of one run (``store/key.json`` plus ``key.npy``), made when missing."""
+    record_file = store / f"{key}.json"
+    if record_file.exists():
+        return json.loads(record_file.read_text())
+    values, cpu, wall, status, extra = make()
+    if values is not None:
+        np.save(store / f"{key}.npy", values)
+    record = {"cpu": cpu, "wall": wall, "status": status, "load": os.getloadavg()[0], **extra}
+    record_file.write_text(json.dumps(record))
+    return record
+
+
 def main() -> int:
-    """Print one Markdown table per grid."""
+    """Run what is asked and missing from the store, then print one Markdown table per grid."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="30,100")
     parser.add_argument("--kinds", default="rc,rlc")
-    parser.add_argument("--rtols", default="1e-6,1e-10")
-    parser.add_argument("--timeout", type=float, default=900.0)
-    parser.add_argument("--no-tight", action="store_true", help="skip ngspice at tight settings")
+    parser.add_argument("--rtols", default="1e-6,1e-8,1e-10")
+    parser.add_argument("--runs", default=",".join(RUNS), help=f"which runs to make (of {', '.join(RUNS)})")
+    parser.add_argument("--store", type=Path, default=ROOT / "benchmarks" / "results" / "grid")
+    parser.add_argument("--timeout", type=float, default=900.0, help="CPU seconds per run")
     args = parser.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="grid_"))
+    runs = set(args.runs.split(","))
+    store = args.store
+    store.mkdir(parents=True, exist_ok=True)
     for size in (int(v) for v in args.sizes.split(",")):
         for kind in args.kinds.split(","):
             text = grid_netlist(size, kind)
-            path = work / f"{kind}{size}.cir"
+            name = f"{kind}{size}"
+            path = store / f"{name}.cir"
             path.write_text(text)
             probes = probe_nodes(size)
             outs = ",".join(f"v({p})" for p in probes)
-            ref_file = work / f"{kind}{size}_ref.npy"
-            report, cpu, wall, status = child(
-                [sys.executable, "-c", OURS, str(path), "1e-13", outs, str(ref_file)], args.timeout
-            )
-            if report is None:
-                print(f"{kind} {size}: reference run {status}")
-                continue
-            reference = np.load(ref_file)
-            swing = np.ptp(reference, axis=0)
-            rows = [("netlistdyn descriptor, rtol 1e-13 (reference)", cpu, wall, 0.0, status)]
 
-            def error(values: np.ndarray | None, reference=reference, swing=swing) -> float:
-                if values is None:
-                    return float("nan")
-                return float((np.abs(values - reference).max(axis=0) / swing).max())
-
-            for rtol in args.rtols.split(","):
-                target = work / f"{kind}{size}_{rtol}.npy"
+            def ours(rtol: str, key: str, path: Path = path, outs: str = outs) -> tuple:
+                target = store / f"{key}.npy"
                 rep, cpu, wall, status = child(
                     [sys.executable, "-c", OURS, str(path), rtol, outs, str(target)], args.timeout
                 )
-                rows.append(
+                values = np.load(target) if rep and target.exists() else None
+                return values, cpu, wall, status if rep is None else rep["status"], rep or {}
+
+            plan: list[tuple[str, str, Callable[[], tuple]]] = []
+            if "ref" in runs or (store / f"{name}_ref.json").exists():
+                plan.append(
                     (
-                        f"netlistdyn descriptor, rtol {rtol}",
-                        cpu,
-                        wall,
-                        error(np.load(target)) if rep else None,
-                        status,
+                        f"netlistdyn, rtol {REFERENCE_RTOL} (reference)",
+                        f"{name}_ref",
+                        partial(ours, REFERENCE_RTOL, f"{name}_ref"),
                     )
                 )
-            for tight in (False, True) if not args.no_tight else (False,):
-                values, cpu, wall, status = ngspice(text, probes, work, tight, args.timeout)
-                label = "ngspice -b, reltol 1e-9, TMAX 0.1 ps" if tight else "ngspice -b, default"
-                rows.append((label, cpu, wall, error(values), status))
-            if kind == "rc":
-                target = work / f"{kind}{size}_radau.npy"
-                rep, cpu, wall, status = child(
-                    [sys.executable, "-c", RADAU, str(path), "1e-8", outs, str(target)], args.timeout
+            for rtol in args.rtols.split(","):
+                key = f"{name}_rtol{rtol}"
+                if "ours" in runs or (store / f"{key}.json").exists():
+                    plan.append((f"netlistdyn, rtol {rtol}", key, partial(ours, rtol, key)))
+            for tight in (False, True):
+                key = f"{name}_ng_{'tight' if tight else 'default'}"
+                if ("tight" if tight else "ngspice") in runs or (store / f"{key}.json").exists():
+                    label = "ngspice -b, reltol 1e-9, TMAX 0.1 ps" if tight else "ngspice -b, default"
+                    plan.append(
+                        (label, key, partial(ngspice_run, text, probes, store, key, tight, args.timeout))
+                    )
+            key = f"{name}_radau"
+            if kind == "rc" and ("radau" in runs or (store / f"{key}.json").exists()):
+                plan.append(
+                    ("scipy Radau, rtol 1e-8", key, partial(radau_run, path, outs, store, key, args.timeout))
                 )
-                rows.append(
-                    ("scipy Radau, rtol 1e-8", cpu, wall, error(np.load(target)) if rep else None, status)
-                )
-            unknowns = report["unknowns"]
+            records = [(label, key, stored_run(store, key, make)) for label, key, make in plan]
+            ref_file = store / f"{name}_ref.npy"
+            if not ref_file.exists():
+                print(f"\n{kind} {size}: no reference run yet")
+                continue
+            reference = np.load(ref_file)
+            swing = np.ptp(reference, axis=0)
+            unknowns = next((r.get("unknowns") for _, _, r in records if r.get("unknowns")), "?")
             print(f"\n{kind.upper()} grid {size}x{size} ({unknowns} unknowns), swing {swing.min():.3g} V")
-            print("| run | CPU [s] | wall [s] | max error / swing | status |")
-            print("|---|---:|---:|---:|---|")
-            for label, cpu, wall, err, status in rows:
-                err_text = "-" if err is None or err != err else f"{err:.2g}"
-                print(f"| {label} | {cpu:.2f} | {wall:.2f} | {err_text} | {status} |")
+            print("| run | CPU [s] | wall [s] | load | max error / swing | status |")
+            print("|---|---:|---:|---:|---:|---|")
+            for label, key, record in records:
+                values_file = store / f"{key}.npy"
+                err = "-"
+                if values_file.exists() and not key.endswith("_ref"):
+                    values = np.load(values_file)
+                    err = f"{float((np.abs(values - reference).max(axis=0) / swing).max()):.2g}"
+                cpu, wall, load = record["cpu"], record["wall"], record["load"]
+                print(f"| {label} | {cpu:.2f} | {wall:.2f} | {load:.1f} | {err} | {record['status']} |")
             sys.stdout.flush()
     return 0
+
+
+def ngspice_run(text: str, probes: list[str], store: Path, key: str, tight: bool, timeout: float) -> tuple:
+    """One batch ngspice run for :func:`stored_run`."""
+    values, cpu, wall, status = ngspice(text, probes, store, key, tight, timeout)
+    return values, cpu, wall, status, {}
+
+
+def radau_run(path: Path, outs: str, store: Path, key: str, timeout: float) -> tuple:
+    """scipy's Radau for :func:`stored_run`."""
+    target = store / f"{key}.npy"
+    rep, cpu, wall, status = child(
+        [sys.executable, "-c", RADAU, str(path), "1e-8", outs, str(target)], timeout
+    )
+    values = np.load(target) if rep and target.exists() else None
+    return values, cpu, wall, status if rep is None else rep["status"], {}
 
 
 if __name__ == "__main__":
