@@ -96,7 +96,21 @@ class SourceValues:
         self.pulse_index = np.array([j for j, _ in pulses], dtype=np.intp)
         fields = ("v1", "v2", "td", "tr", "tf", "pw", "per")
         self.pulse = {f: np.array([float(getattr(w, f)) for _, w in pulses]) for f in fields}
-        self.other = [(j, w) for j, w in enumerate(waveforms) if not isinstance(w, Dc | Pulse)]
+        # PWL tables side by side (padded with +inf times holding the last value), evaluated
+        # together: one waveform at a time cost 1.2 ms per step with 100 loads on a 10x10 grid.
+        pwls = [(j, w) for j, w in enumerate(waveforms) if type(w) is Pwl]
+        self.pwl_index = np.array([j for j, _ in pwls], dtype=np.intp)
+        width = max((len(w.times) for _, w in pwls), default=1)
+        self.pwl_t = np.full((len(pwls), width), np.inf)
+        self.pwl_v = np.empty((len(pwls), width))
+        for row, (_, w) in enumerate(pwls):
+            self.pwl_t[row, : len(w.times)] = w.times
+            self.pwl_v[row, : len(w.values)] = w.values
+            self.pwl_v[row, len(w.values) :] = w.values[-1]
+        self.rows = np.arange(len(pwls))
+        self.other = [
+            (j, w) for j, w in enumerate(waveforms) if not isinstance(w, Dc | Pulse) and type(w) is not Pwl
+        ]
 
     def __call__(self, t: float) -> NDArray[np.float64]:
         """Every input's value at time ``t`` (s)."""
@@ -115,9 +129,23 @@ class SourceValues:
             fall = (fall_t > 0) & (fall_t < p["tf"])
             value = np.where(fall, p["v2"] + (p["v1"] - p["v2"]) * fall_t / p["tf"], value)
             out[self.pulse_index] = value
+        if self.pwl_index.size:
+            out[self.pwl_index] = self._pwl(t)
         for j, w in self.other:
             out[j] = float(np.asarray(w(np.array([t])))[0])
         return out
+
+    def _pwl(self, t: float) -> NDArray[np.float64]:
+        """Every PWL at t, as :meth:`netlistdyn.waveforms.Pwl.__call__` (after a jump)."""
+        lo = np.count_nonzero(self.pwl_t <= t, axis=1) - 1  # last corner at or before t
+        start = np.maximum(lo, 0)
+        stop = np.minimum(start + 1, self.pwl_t.shape[1] - 1)
+        t_lo, t_hi = self.pwl_t[self.rows, start], self.pwl_t[self.rows, stop]
+        v_lo, v_hi = self.pwl_v[self.rows, start], self.pwl_v[self.rows, stop]
+        with np.errstate(invalid="ignore"):
+            inside = (lo >= 0) & (t_hi > t_lo) & np.isfinite(t_hi)
+            frac = np.where(inside, (t - t_lo) / np.where(inside, t_hi - t_lo, 1.0), 0.0)
+        return np.where(lo < 0, self.pwl_v[:, 0], v_lo + frac * (v_hi - v_lo))
 
     def piecewise_linear(self) -> bool:
         """True when every input is linear between breakpoints."""

@@ -298,3 +298,24 @@ def test_cli_uses_descriptor_form_for_large_circuits(tmp_path, monkeypatch) -> N
     assert doc["method"] == "descriptor"
     assert len(doc["time"]) == 1001
     assert abs(doc["values"]["v(n2_2)"][0] - 1.8) < 1e-9  # the DC operating point: no load at t = 0
+
+
+def test_source_values_evaluate_pwl_tables_as_each_waveform_does() -> None:
+    """The side-by-side PWL evaluation equals each waveform's own (jumps, holds before the first
+    and after the last corner, corners exactly hit), to the last bit."""
+    from netlistdyn.waveforms import Dc, Pwl
+
+    rng = np.random.default_rng(3)
+    waves = []
+    for k in range(40):
+        count = int(rng.integers(1, 8))
+        times = np.sort(rng.uniform(0.0, 1e-9, count))
+        if count > 2 and k % 3 == 0:
+            times[2] = times[1]  # a time written twice: a jump
+        waves.append(Pwl(tuple(map(float, times)), tuple(map(float, rng.uniform(-1e-2, 1e-2, count)))))
+    waves.append(Dc(1.8))
+    values = transient.SourceValues(waves)
+    probes = [*rng.uniform(-1e-10, 1.1e-9, 500), *(t for w in waves[:-1] for t in w.times)]
+    for t in probes:
+        own = np.array([float(w(np.array([t]))[0]) for w in waves])
+        assert np.array_equal(values(float(t)), own)
