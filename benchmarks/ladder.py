@@ -36,7 +36,7 @@ def ladder_netlist(
         lines.append(f"C{k} n{k} 0 {c!r}")
         prev = f"n{k}"
     horizon = tstop if tstop is not None else max(2e-3, 2.0 * sections * (ind * c) ** 0.5)
-    lines.append(f".tran {horizon / 1000!r} {horizon!r}")
+    lines.append(f".tran {horizon / 1000!r} {horizon!r} uic")  # a step response: start at rest
     lines.append(".end")
     return "\n".join(lines) + "\n"
 
