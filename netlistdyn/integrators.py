@@ -293,6 +293,11 @@ class _PadeStep:
         return x
 
 
+#: Steps (accepted and rejected) after which ``rational`` stops a model with a growing mode,
+#: status ``failed``, unless the input breakpoints call for more (20 per breakpoint).
+RATIONAL_STEP_BUDGET = 100_000
+
+
 def _rational(
     model: StateSpaceModel,
     signals: InputSignals,
@@ -374,6 +379,10 @@ def _rational(
     states[0] = x
     level = 0
     depth_limit = 48
+    # Only for a model with a growing mode: a growing fast mode (140 MHz, growing at 1.3e5 1/s
+    # over 0.1 s) otherwise steps for tens of minutes before the state overflows; a stable model
+    # is never stopped (a lightly damped GHz mode over a millisecond needs millions of steps).
+    step_budget = max(RATIONAL_STEP_BUDGET, 20 * events.size)
     # Between input breakpoints nothing re-excites unresolved modes, so in a model with
     # no growing mode their content only decays: the check can be skipped for a few
     # steps of an unchanged length once it has passed with a wide margin.
@@ -425,6 +434,18 @@ def _rational(
                 checked_h, unchecked = h, 0
                 stats["checks"] += 1
             ratio, comfort, contribution, noise_here = last
+            if growing and stats["steps"] + stats["rejected"] > step_budget:
+                return SimResult(
+                    times,
+                    np.full((times.size, model.C.shape[0]), np.nan),
+                    "rational",
+                    f"rtol={rtol:g}",
+                    time.perf_counter() - start,
+                    "failed",
+                    f"stopped after {step_budget:,} steps at t = {events[k - 1] + done * length:.6g} s "
+                    f"(step {h:.3g} s)" + ": the model has a growing mode, try --method exact",
+                    stats,
+                )
             if ratio > 1.0 and level < depth_limit:
                 level += 1
                 stats["rejected"] += 1

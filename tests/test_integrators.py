@@ -283,3 +283,32 @@ def test_exact_sin_and_exp_inputs_against_an_augmented_system(source: str, gener
     picks = np.unique(np.r_[0, np.random.default_rng(7).integers(0, times.size, 23), times.size - 1])
     ref = mp_augmented_response(A_aug, np.r_[np.zeros(n), g0], C_aug, times[picks])
     assert rel_err(result.outputs[picks], ref) <= EXACT_RTOL
+
+
+def test_rational_stops_a_growing_fast_mode(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 140 MHz mode growing at 1.3e5 1/s (a negative conductance, from a random network) made
+    rational step for tens of minutes at 4 ns before the state could overflow; with a growing
+    mode it now stops at its step budget with status "failed" and points to exact. The budget is
+    lowered here so the test takes a second (the CLI's 100 000 steps took 32 s)."""
+    text = """unstable: negative conductance
+Vin n1 0 1
+C0 n3 n2 3.9e-06
+L1 n2 0 3.9e-11
+L2 n2 n1 0.00022
+L3 n2 n3 2.2e-11
+R4 n1 0 0.0033
+C5 n3 0 3.3e-08
+L6 0 n3 8.2e-08
+Rgn1 n1 0 180000
+Rgn2 n2 0 8200
+Rgn3 n3 0 820000
+G1 n2 n1 n2 n1 -0.0086309984165507548
+.end
+"""
+    monkeypatch.setattr(integrators, "RATIONAL_STEP_BUDGET", 2000)
+    net = parse_text(text)
+    model = compile_string(text, ["v(n3)"])
+    times = np.linspace(0.0, 0.1, 101)
+    result = integrators.run(model, input_signals(net, 1e-3, 0.1), times, "rational", rtol=1e-8)
+    assert result.status == "failed"
+    assert "growing mode" in result.message and "exact" in result.message
