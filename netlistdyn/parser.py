@@ -1260,40 +1260,26 @@ def _build_behavioural(line: Line, kind_letter: str, mode: str, expr: str, ctx: 
                 f"{name}: the constant term {constant:g} of its expression is a model input ({label})",
             )
         )
-    out: list[Element] = []
-    if mode == "v":
+    if mode == "v":  # voltage pieces in series through internal nodes
         key = name.lower()
         chain = [plus] + [f"{key}.n{k}" for k in range(1, len(pieces))] + [minus]
-        for k, (kind, label, coeff, cnodes, csource, wave) in enumerate(pieces):
-            out.append(
-                Element(
-                    kind,
-                    label,
-                    (chain[k], chain[k + 1]),
-                    coeff,
-                    loc,
-                    control_nodes=cnodes,
-                    control_source=csource,
-                    waveform=wave,
-                    expression=expr,
-                )
-            )
-    else:
-        for kind, label, coeff, cnodes, csource, wave in pieces:
-            out.append(
-                Element(
-                    kind,
-                    label,
-                    (plus, minus),
-                    coeff,
-                    loc,
-                    control_nodes=cnodes,
-                    control_source=csource,
-                    waveform=wave,
-                    expression=expr,
-                )
-            )
-    return out
+        ends = list(itertools.pairwise(chain))
+    else:  # current pieces in parallel
+        ends = [(plus, minus)] * len(pieces)
+    return [
+        Element(
+            kind,
+            label,
+            nodes,
+            coeff,
+            loc,
+            control_nodes=cnodes,
+            control_source=csource,
+            waveform=wave,
+            expression=expr,
+        )
+        for (kind, label, coeff, cnodes, csource, wave), nodes in zip(pieces, ends, strict=True)
+    ]
 
 
 def _nonlinear_behavioural(
