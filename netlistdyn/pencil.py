@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,15 +75,21 @@ class CheckedEigenvalue:
     refined: bool
 
 
+def _equilibration(matrix: sp.csr_array) -> tuple[np.ndarray, np.ndarray]:
+    """Row then column scalings (r, c) that bring every row's and column's largest entry to 1."""
+    abs_m = abs(matrix)
+    row = abs_m.max(axis=1).toarray().ravel()
+    r = np.where(row > 0, 1.0 / np.where(row > 0, row, 1.0), 1.0)
+    col = (sp.diags_array(r) @ abs_m).max(axis=0).toarray().ravel()
+    c = np.where(col > 0, 1.0 / np.where(col > 0, col, 1.0), 1.0)
+    return r, c
+
+
 class _Factor:
     """LU of an equilibrated complex matrix P = R⁻¹ S C⁻¹, solving with P and Pᴴ."""
 
     def __init__(self, matrix: sp.csr_array) -> None:
-        abs_m = abs(matrix)
-        row = abs_m.max(axis=1).toarray().ravel()
-        self.r = np.where(row > 0, 1.0 / np.where(row > 0, row, 1.0), 1.0)
-        col = (sp.diags_array(self.r) @ abs_m).max(axis=0).toarray().ravel()
-        self.c = np.where(col > 0, 1.0 / np.where(col > 0, col, 1.0), 1.0)
+        self.r, self.c = _equilibration(matrix)
         scaled = sp.diags_array(self.r) @ matrix @ sp.diags_array(self.c)
         n = matrix.shape[0]
         self.dense = n <= DENSE_PENCIL
@@ -105,6 +112,12 @@ class _Factor:
         rhs = self.r * b
         x = sla.lu_solve(self.lu, rhs, check_finite=False) if self.dense else self.lu.solve(rhs)
         return self.c * x
+
+    def solve_scaled(self, b: np.ndarray, hermitian: bool = False) -> np.ndarray:
+        """S⁻¹ b (or S⁻ᴴ b): a solve with the equilibrated matrix itself."""
+        if self.dense:
+            return sla.lu_solve(self.lu, b, trans=2 if hermitian else 0, check_finite=False)
+        return self.lu.solve(b, trans="H" if hermitian else "N")
 
     def solve_h(self, b: np.ndarray) -> np.ndarray:
         """P⁻ᴴ b = R S⁻ᴴ C b."""
@@ -139,20 +152,28 @@ def _pair(
             # λ is an eigenvalue to working precision; inverse iteration from a neighbour finds
             # the same vectors (Newton's method then starts from λ itself).
             return _pair(G, E, lam * (1 + 16 * EPS), start, nudged=True)
-        # λ is an eigenvalue to working precision: the singular vectors of the last singular value.
-        dense = matrix.toarray()
+        # λ is an eigenvalue to working precision: the singular vectors of the last singular value,
+        # taken on the equilibrated matrix (see below) and mapped back.
+        r, c = _equilibration(matrix)
+        dense = (sp.diags_array(r) @ matrix @ sp.diags_array(c)).toarray()
         if not np.all(np.isfinite(dense)):
             return None
         try:
             u, _, vh = np.linalg.svd(dense)
         except np.linalg.LinAlgError:
             return None
-        return vh[-1].conj(), u[:, -1]
+        return _unit(c * vh[-1].conj()), _unit(r * u[:, -1])
+    # Inverse iteration on the equilibrated matrix S = R (G + λE) C: its null vectors map back as
+    # w = C y and z = R x. In the unscaled matrix, rows of 1e-15 Ω beside 1e28 S (a 1 fF node
+    # at a 1e24 1/s eigenvalue) make singular values smaller than the eigenvalue's own, and
+    # unscaled inverse iteration converges to those instead.
     with np.errstate(all="ignore"):
-        w = _unit(factor.solve(start[0]))
-        w = _unit(factor.solve(w))
-        z = _unit(factor.solve_h(start[1]))
-        z = _unit(factor.solve_h(z))
+        y = _unit(factor.solve_scaled(_unit(start[0])))
+        y = _unit(factor.solve_scaled(y))
+        x = _unit(factor.solve_scaled(_unit(start[1]), hermitian=True))
+        x = _unit(factor.solve_scaled(x, hermitian=True))
+        w = _unit(factor.c * y)
+        z = _unit(factor.r * x)
     if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
         return None
     return w, z
@@ -679,7 +700,7 @@ def check_spectrum(
     plan = _plan(from_a, from_qz, reliable, n - zeros)
     if sum(p[2] for p in plan) + zeros < n:
         known = [r for r in from_a if r is not None] + from_qz
-        extra = _sweep(blocks, known, exact)
+        extra = _sweep(blocks, known, exact, [float(abs(v)) for v in values])
         if extra:
             plan = _plan(from_a, from_qz + extra, reliable, n - zeros)
     slots: list[tuple[int, CheckedEigenvalue | None]] = []
@@ -750,7 +771,9 @@ SWEEP_STEP = 3
 SWEEP_WINDOW = 2.5
 
 
-def _sweep(blocks: list[_Prepared], known: list[CheckedEigenvalue], exact: bool) -> list[CheckedEigenvalue]:
+def _sweep(
+    blocks: list[_Prepared], known: list[CheckedEigenvalue], exact: bool, scales: Sequence[float] = ()
+) -> list[CheckedEigenvalue]:
     """Eigenvalues not yet found, from QZ on the frequency-scaled blocks (G, σE).
 
     QZ's error is relative to the pencil's norm in its own scaling, so a
@@ -759,7 +782,11 @@ def _sweep(blocks: list[_Prepared], known: list[CheckedEigenvalue], exact: bool)
     ratios of the entries span, each QZ contributing the eigenvalues within
     its window, each verified by Newton's method on the block. A result
     equal (within the bars) to one already known, or to another found here,
-    is dropped: the sweep adds roots, never multiplicity.
+    is dropped: the sweep adds roots, never multiplicity. ``scales`` adds
+    σ values of its own — the magnitudes of A's eigenvalues: the ratios of
+    the entries do not bound the roots when a branch law mixes resistances
+    and conductances (a 1e24 1/s root from a 9 fΩ resistor and a 3 fF
+    capacitor lies outside them), A's estimate of a root does, roughly.
     """
     found: list[CheckedEigenvalue] = []
     for block in blocks:
@@ -772,8 +799,9 @@ def _sweep(blocks: list[_Prepared], known: list[CheckedEigenvalue], exact: bool)
         low = math.floor(math.log10(g.min() / e.max())) - SWEEP_STEP
         high = math.ceil(math.log10(g.max() / e.min())) + SWEEP_STEP
         starts: list[complex] = []
-        for power in range(low, high + 1, SWEEP_STEP):
-            sigma = 10.0**power
+        sigmas = [10.0**power for power in range(low, high + 1, SWEEP_STEP)]
+        sigmas += [v for v in scales if np.isfinite(v) and v > 0 and not low <= math.log10(v) <= high]
+        for sigma in sigmas:
             for mu in _qz(block, sigma, scaled=True):
                 if 10.0**-SWEEP_WINDOW <= abs(mu) <= 10.0**SWEEP_WINDOW:
                     lam = sigma * mu

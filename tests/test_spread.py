@@ -246,6 +246,43 @@ Rgn3 n3 0 4.6822627732110012e-05
 """
 
 
+UNSCALED_VECTOR = """inverse iteration on the unscaled pencil lands on a 1e24 root's wrong vector
+Vin n1 0 1
+R0 n5 0 8.5971424525046171e-15
+R1 n3 n5 6.0788481075740335e-08
+C2 0 n3 6944.8939591027129
+L3 0 n5 136.68496396697313
+C4 0 n2 2.2270280542248257
+R5 n2 n5 1.9383000878533008e-13
+C6 0 n4 2.7914562811775955e-15
+R7 n4 n2 4.7703506388757472e-05
+Rgn1 n1 0 2.9215431634637719e-09
+Rgn2 n2 0 1.8484220010861262e-07
+Rgn3 n3 0 0.017013024611134221
+Rgn4 n4 0 9.2403430210113648e-11
+Rgn5 n5 0 2.464232866564488e-15
+.end
+"""
+
+MIXED_UNITS_SWEEP = """a complex pair at 6e13 rad/s beside a 16 fH inductor and a 17 fF capacitor
+Vin n1 0 1
+L0 n2 n3 621.98657367603153
+L1 0 n2 66516.181186288974
+C2 n1 n4 0.00049863256888947616
+R3 n2 n4 2.6048909402884071e-13
+C4 n3 n2 1.6675216502703762e-14
+L5 n3 0 1.5568762060735148e-14
+Rgn1 n1 0 0.016202729743374882
+Rgn2 n2 0 3.9781518201523987e-10
+Rgn3 n3 0 1773.5636519945094
+Rgn4 n4 0 169380.60216153011
+Rgn5 n5 0 0.0001173541962438809
+G1 n2 n3 n4 0 516.05524525528892
+K1 L0 L1 0.35233339568631561
+.end
+"""
+
+
 @pytest.mark.parametrize(
     "text",
     [
@@ -257,6 +294,8 @@ Rgn3 n3 0 4.6822627732110012e-05
         ONE_ENTRY_ROW,
         DEEP_VECTOR,
         COUNTED_TWICE,
+        UNSCALED_VECTOR,
+        MIXED_UNITS_SWEEP,
     ],
     ids=[
         "huge-root-lost",
@@ -267,6 +306,8 @@ Rgn3 n3 0 4.6822627732110012e-05
         "one-entry-row",
         "deep-vector",
         "counted-twice",
+        "unscaled-vector",
+        "mixed-units-sweep",
     ],
 )
 def test_wide_spread_reproducers_within_bars(text):
@@ -287,6 +328,12 @@ def test_wide_spread_reproducers_within_bars(text):
       eigenvector has components 1e-31 of its largest, which a double vector cannot resolve.
     - counted twice: exact {0, −3.949906484251017e-17, −6.462197776624877}; −3.9e-17 was reported
       twice (a QZ start at the structural zero went to it) and the verdict was "asymptotically stable".
+    - unscaled vector: exact {−3.8768760606738676e24, −2293947687653.63, −2368.724910858496,
+      −1.4012189208372167e-17}; −2368.7 was reported twice and −3.9e24 lost. Inverse iteration on
+      G + λE unscaled (9 fΩ rows beside 2.7e28 entries) converged to the wrong vector, Newton's
+      method then jumped to −2.3e12, and the QZ sweep's range (entry ratios) stopped at 1e20.
+    - mixed units sweep: exact {0, −5037949512897.046, −7.868267743675018e-13,
+      −16905909835.299404 ± 62063634247208.72j}; the pair was reported as a real −5.0e12 ± 1 %.
     """
     netlist, _, eig = _analyse(text, ["v(n1)"])
     exact = exact_natural_frequencies(netlist)
