@@ -570,6 +570,23 @@ class TransferFunction:
 
         return f"{self.output}/{self.input} = ({poly(self.num)}) / ({poly(self.den)})"
 
+    @property
+    def cancelled(self) -> int:
+        """How many modes of A this pair does not see (factors common to ``num`` and ``den``)."""
+        return len(self.den) - 1 - len(self.poles)
+
+    def minimal(self) -> TransferFunction:
+        """The same G(s) with the cancelled factors divided out: ``den`` = ∏(s − pole).
+
+        ``num`` keeps its leading coefficient (the cancelled factors are monic).
+        """
+        if self.cancelled <= 0:
+            return self
+        lead = next((c for c in self.num if c != 0), 0.0)
+        num = tuple(float(c) for c in np.atleast_1d(lead * np.poly(self.zeros)).real) if lead else (0.0,)
+        den = tuple(float(c) for c in np.atleast_1d(np.poly(self.poles)).real)
+        return TransferFunction(self.output, self.input, num, den, self.poles, self.zeros, self.dc_gain)
+
 
 def _poly(roots: Sequence[complex], errors: Sequence[float], gain: float = 1.0) -> np.ndarray:
     """Real coefficients of gain·∏(s − r); those below their rounding bound are exactly 0.

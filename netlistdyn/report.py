@@ -528,6 +528,11 @@ def control_text(structure: Any, tfs: Sequence[Any]) -> str:
         )
     for t in tfs:
         out.append(t.text())
+        if t.cancelled > 0:
+            reduced = t.minimal().text().split(" = ", 1)[1]
+            out.append(
+                f"  = {reduced}  ({t.cancelled} common factor(s) cancelled: modes this pair does not see)"
+            )
         out.append(f"  DC gain {t.dc_gain:.6g}; poles {modes(t.poles) or '-'}; zeros {modes(t.zeros) or '-'}")
     return "\n".join(out) + "\n"
 

@@ -228,3 +228,30 @@ def test_cart_angle_transfer_functions_match_seed_002() -> None:
         tf = tfs[name]
         np.testing.assert_allclose(tf.num, num, rtol=1e-4, atol=1e-9 * max(abs(c) for c in num))
         np.testing.assert_allclose(tf.den, [1, 0, -98.1, 0, 1176.2, 0, 0], rtol=1e-4, atol=1e-9)
+
+
+def test_minimal_transfer_function_cancels_the_modes_a_pair_does_not_see() -> None:
+    """v(a)/Vin of an RC–RL branch beside an RC branch driven by the same source: the printed form
+    keeps the notes' characteristic polynomial (third order); the minimal one is the closed form
+    (L s + R3) / (R1 C L s² + (R1 C R3 + L) s + R1 + R3), normalised to a monic denominator.
+    Tolerance 1e-9 relative: the coefficients come from eigenvalues and zeros known to ~1e-14."""
+    r1, c, ind, r3 = 1e3, 1e-6, 1e-3, 10.0
+    model = compile_string(
+        f"RC beside RLC\nVin in 0 1\nR1 in a {r1}\nC1 a 0 {c}\nR2 in b 2k\nC2 b 0 1u\n"
+        f"L1 a m {ind}\nR3 m 0 {r3}\n.end\n",
+        outputs=["v(a)"],
+    )
+    (tf,) = control.transfer_functions(model)
+    assert len(tf.den) == 4 and tf.cancelled == 1
+    minimal = tf.minimal()
+    k = r1 * c * ind
+    np.testing.assert_allclose(minimal.num, [ind / k, r3 / k], rtol=1e-9)
+    np.testing.assert_allclose(minimal.den, [1.0, (r1 * c * r3 + ind) / k, (r1 + r3) / k], rtol=1e-9)
+    runner = CliRunner()
+    with runner.isolated_filesystem():
+        Path("rc.cir").write_text(
+            "twin RCs\nVin in 0 1\nR1 in a 1k\nC1 a 0 1u\nR2 in b 1k\nC2 b 0 1u\n.end\n"
+        )
+        result = runner.invoke(main, ["analyze", "rc.cir", "--control", "--output", "v(a)"])
+    assert result.exit_code == 0, result.output
+    assert "= (+1000) / (+1·s +1000)  (1 common factor(s) cancelled" in result.output
