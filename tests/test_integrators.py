@@ -14,12 +14,14 @@ Named tolerances and why:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import mpmath as mp
 import numpy as np
 import pytest
 
 from netlistdyn import integrators
+from netlistdyn.formulate import compile_netlist
 from netlistdyn.integrators import pade_factors, pade_factors_exact
 from netlistdyn.parser import parse_file, parse_text
 from netlistdyn.simulate import input_signals
@@ -189,8 +191,24 @@ def test_exact_at_many_times_matches_mpmath(R: float) -> None:
     assert rel_err(result.outputs[picks], ref) <= EXACT_RTOL
 
 
-@pytest.mark.parametrize("name", ["dipc.cir", "servo_shaft.cir", "waveforms.cir", "cap_loop.cir"])
-def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+CORPUS_CERT = Path(__file__).parent / "corpus" / "Xyce_Regression" / "Netlists" / "Certification_Tests"
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "dipc.cir",
+        "servo_shaft.cir",
+        "waveforms.cir",
+        "cap_loop.cir",
+        # Written by others, at realistic values: 60 Hz mains on 1 kΩ and 1 mH (L/R = 1 µs against a
+        # 16.7 ms period) with five inductors coupled at 0.75 — a stiff SIN case (300 times over the
+        # first 1.6 ms: each SIN substep is a Python step).
+        CORPUS_CERT / "BUG_1957" / "mutindlin_odd_s3f5.cir",
+    ],
+    ids=lambda name: Path(name).name,
+)
+def test_vectorised_and_stepwise_exact_paths_agree(name: str | Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The vectorised modal path against stepping through every requested time with Van Loan's
     augmented exponential (PULSE, PWL, SIN and EXP sources, a D1 term). 2e-9 of the peak: both
     are exact for piecewise-linear inputs (they differ by rounding, ~1e-12 over 20 000 steps as
@@ -204,17 +222,33 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str, monkeypatch: pytes
     from netlistdyn.simulate import FohPropagator, propagate_foh
 
     net = parse_file(NETLISTS / name)
-    model = compile_file(name)
+    model = compile_netlist(net, None)
     assert net.tran is not None
     signals = input_signals(net, net.tran.tstep, net.tran.tstop)
-    times = np.sort(np.r_[0.0, np.random.default_rng(5).uniform(0, net.tran.tstop / 4, 2_000)])
+    corpus = isinstance(name, Path)
+    span, count = (net.tran.tstop / 16, 300) if corpus else (net.tran.tstop / 4, 2_000)
+    times = np.sort(np.r_[0.0, np.random.default_rng(5).uniform(0, span, count)])
     fast = propagate_foh(model, signals, times)
     # The stepwise path: through every requested time with Van Loan's augmented exponential.
     monkeypatch.setattr(FohPropagator, "modal", property(lambda self: False))
     slow = propagate_foh(model, signals, times, rtol=2e-9)
     assert slow.path == "augmented expm"
-    assert slow.verified, slow.message
-    assert rel_err(fast.outputs, slow.outputs) <= 2e-9
+    if not corpus:
+        assert slow.verified, slow.message
+        assert rel_err(fast.outputs, slow.outputs) <= 2e-9
+        return
+    # The mains case: v(2) = L·di/dt is ~ωL/R = 4e-4 of the source, so linear pieces that follow
+    # the SIN to 1e-9 of its amplitude leave ~1e-6 of v(2)'s peak (1.7e-6 measured). The stepped path
+    # cannot reach 2e-9 here; what it must do is say so, with an estimate that covers its error.
+    peaks = np.max(np.abs(fast.outputs), axis=0)
+    actual = float(
+        np.max(np.max(np.abs(fast.outputs - slow.outputs), axis=0) / np.where(peaks > 0, peaks, 1.0))
+    )
+    if slow.verified:
+        assert actual <= 2e-9
+    else:
+        assert "cannot be vouched for" in slow.message
+        assert actual <= slow.error, (actual, slow.error)
 
 
 def test_phi_functions_against_mpmath() -> None:
