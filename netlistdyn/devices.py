@@ -7,8 +7,9 @@ Two kinds of nonlinear element reach :mod:`netlistdyn.nonlinear`:
   number, every ``.func`` expanded), so that the element carries a
   self-contained text in ``v(...)``, ``i(...)`` and ``time`` only.
   :class:`Behaviour` evaluates it together with its exact partial
-  derivatives (forward-mode automatic differentiation over an explicit
-  stack, no recursion), with ngspice 39's B-source semantics:
+  derivatives (forward-mode automatic differentiation through
+  :func:`netlistdyn.expressions.walk`, the walker every expression uses),
+  with ngspice 39's B-source semantics:
   ``x**y``, ``x^y`` and ``pow(x, y)`` are ``|x|^y``, ``pwr(x, y)`` is
   ``sgn(x)·|x|^y`` (measured with ``ngspice -b``), ``u`` and ``uramp`` are
   the unit step and ramp.
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .expressions import CONSTANTS, Expression, ExpressionError, parse
+from .expressions import CONSTANTS, Expression, ExpressionError, Hooks, logic, parse, walk
 
 #: Boltzmann's constant over the electron charge (V/K), as ngspice 39's const.h.
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -187,85 +188,69 @@ def fold(
         Unknown parameter or function, wrong argument count, a ``.func`` that
         calls itself.
     """
-    tree = parse(displacement_refs(text)).tree
-    # Explicit stack: (node, local bindings, depth, state); results on `out`.
-    out: list[str] = []
-    stack: list[tuple[Node, Mapping[str, str], int, int]] = [(tree, {}, 0, 0)]
-    while stack:
-        node, local, depth, state = stack.pop()
-        tag = node[0]
-        if tag == "num":
-            out.append(repr(float(node[1])))
-        elif tag == "name":
-            name = str(node[1])
-            if name in local:
-                out.append(local[name])
-            elif name in params:
-                out.append(repr(float(params[name])))
-            elif name in CONSTANTS:
-                out.append(repr(CONSTANTS[name]))
-            elif name == TIME:
-                out.append(TIME)
-            else:
-                raise ExpressionError(f"unknown parameter {name!r}")
-        elif tag == "ref":
-            args = node[2] if rename is None else tuple(rename(str(node[1]), a) for a in node[2])
-            out.append(f"{node[1]}({','.join(args)})")
-        elif tag in ("neg", "pos", "not"):
-            if state == 0:
-                stack.append((node, local, depth, 1))
-                stack.append((node[1], local, depth, 0))
-            else:
-                x = out.pop()
-                out.append(_folded({"neg": f"(0-{x})", "pos": x, "not": f"(!{x})"}[tag]))
-        elif tag == "bin":
-            if state == 0:
-                stack.append((node, local, depth, 1))
-                stack.append((node[3], local, depth, 0))
-                stack.append((node[2], local, depth, 0))
-            else:
-                b = out.pop()
-                a = out.pop()
-                out.append(_folded(f"({a}{node[1]}{b})"))
-        elif tag == "tern":
-            if state == 0:
-                stack.append((node, local, depth, 1))
-                for part in (node[3], node[2], node[1]):
-                    stack.append((part, local, depth, 0))
-            else:
-                b = out.pop()
-                a = out.pop()
-                c = out.pop()
-                out.append(_folded(f"({c}?{a}:{b})"))
-        elif tag == "call":
-            name, args = str(node[1]), node[2]
-            if state == 0:
-                stack.append((node, local, depth, 1))
-                for arg in reversed(args):
-                    stack.append((arg, local, depth, 0))
-                continue
-            values = out[len(out) - len(args) :]
-            del out[len(out) - len(args) :]
-            if name in functions:
-                formals, body = functions[name]
-                if len(formals) != len(values):
-                    raise ExpressionError(f"{name} takes {len(formals)} arguments, got {len(values)}")
-                if depth >= 64:
-                    raise ExpressionError(f".func {name} calls itself (or nests too deeply)")
-                stack.append((body.tree, dict(zip(formals, values, strict=True)), depth + 1, 0))
-                continue
-            if name == "ternary_fcn" and len(values) == 3:
-                out.append(_folded(f"({values[0]}?{values[1]}:{values[2]})"))
-                continue
-            if name not in FUNCTIONS:
-                raise ExpressionError(f"unknown function {name!r}")
-            least, most, _ = FUNCTIONS[name]
-            if not least <= len(values) <= most:
-                raise ExpressionError(f"{name} takes {least}..{most} argument(s), got {len(values)}")
-            out.append(_folded(f"{name}({','.join(values)})"))
-        else:  # pragma: no cover - the parser makes no other node
-            raise ExpressionError(f"bad node {tag}")
-    return out.pop()
+    return walk(parse(displacement_refs(text)).tree, _Folder(params, functions, rename, {}, 0))
+
+
+class _Folder(Hooks[str]):
+    """:func:`fold`'s hooks: each node becomes its folded text."""
+
+    def __init__(
+        self,
+        params: Mapping[str, float],
+        functions: Mapping[str, tuple[tuple[str, ...], Expression]],
+        rename: Callable[[str, str], str] | None,
+        local: Mapping[str, str],
+        depth: int,
+    ) -> None:
+        self.params, self.functions, self.rename = params, functions, rename
+        self.local, self.depth = local, depth
+
+    def number(self, value: float) -> str:
+        return repr(value)
+
+    def name(self, name: str) -> str:
+        if name in self.local:
+            return self.local[name]
+        if name in self.params:
+            return repr(float(self.params[name]))
+        if name in CONSTANTS:
+            return repr(CONSTANTS[name])
+        if name == TIME:
+            return TIME
+        raise ExpressionError(f"unknown parameter {name!r}")
+
+    def ref(self, kind: str, args: tuple[str, ...]) -> str:
+        if self.rename is not None:
+            args = tuple(self.rename(kind, a) for a in args)
+        return f"{kind}({','.join(args)})"
+
+    def unary(self, op: str, x: str) -> str:
+        return _folded({"neg": f"(0-{x})", "pos": x, "not": f"(!{x})"}[op])
+
+    def binary(self, op: str, a: str, b: str) -> str:
+        return _folded(f"({a}{op}{b})")
+
+    def ternary(self, cond: str, a: str, b: str) -> str:
+        return _folded(f"({cond}?{a}:{b})")
+
+    def call(self, name: str, args: list[str]) -> str:
+        if name in self.functions:
+            formals, body = self.functions[name]
+            if len(formals) != len(args):
+                raise ExpressionError(f"{name} takes {len(formals)} arguments, got {len(args)}")
+            if self.depth >= 64:
+                raise ExpressionError(f".func {name} calls itself (or nests too deeply)")
+            local = dict(zip(formals, args, strict=True))
+            inner = _Folder(self.params, self.functions, self.rename, local, self.depth + 1)
+            return walk(body.tree, inner)
+        if name == "ternary_fcn" and len(args) == 3:
+            return _folded(f"({args[0]}?{args[1]}:{args[2]})")
+        if name not in FUNCTIONS:
+            raise ExpressionError(f"unknown function {name!r}")
+        least, most, _ = FUNCTIONS[name]
+        if not least <= len(args) <= most:
+            raise ExpressionError(f"{name} takes {least}..{most} argument(s), got {len(args)}")
+        return _folded(f"{name}({','.join(args)})")
 
 
 #: ``x(node)`` of a mechanical expression: a node's displacement (or angle), read as ``i(@x:node)``.
@@ -322,27 +307,7 @@ class Behaviour:
         """Parse a folded text (node names canonical: ``gnd`` is ground)."""
         expr = parse(text)
         found: dict[tuple[str, str], None] = {}
-        stack: list[Node] = [expr.tree]
-        while stack:
-            node = stack.pop()
-            tag = node[0]
-            if tag == "ref":
-                for arg in node[2]:
-                    key = (str(node[1]), ground if arg in ("0", "gnd") else arg)
-                    if key != ("v", ground):
-                        found.setdefault(key, None)
-            elif tag == "name":
-                if node[1] != TIME:
-                    raise ExpressionError(f"unknown parameter {node[1]!r}")
-                found.setdefault(("time", ""), None)
-            elif tag in ("neg", "pos", "not"):
-                stack.append(node[1])
-            elif tag == "bin":
-                stack.extend((node[3], node[2]))
-            elif tag == "tern":
-                stack.extend((node[3], node[2], node[1]))
-            elif tag == "call":
-                stack.extend(reversed(node[2]))
+        walk(expr.tree, _Variables(found, ground))
         # keep a stable order: first appearance in the text
         order = sorted(found, key=lambda k: _position(expr.text, k))
         return cls(text, expr.tree, tuple(order))
@@ -355,78 +320,97 @@ class Behaviour:
         ExpressionError
             Domain errors (``log`` of a negative number...) or division by zero.
         """
-        n = len(self.variables)
         index = {key: k for k, key in enumerate(self.variables)}
-        zero = np.zeros(n)
-        stack: list[tuple[Node, int]] = [(self.tree, 0)]
-        vals: list[tuple[float, NDArray[np.float64]]] = []
-        while stack:
-            node, state = stack.pop()
-            tag = node[0]
-            if tag == "num":
-                vals.append((float(node[1]), zero))
-            elif tag == "name":
-                k = index[("time", "")]
-                grad = zero.copy()
-                grad[k] = 1.0
-                vals.append((float(values[k]), grad))
-            elif tag == "ref":
-                kind, args = str(node[1]), node[2]
-                value, grad = 0.0, zero.copy()
-                for sign, arg in zip((1.0, -1.0), args, strict=False):
-                    key = (kind, "0" if arg in ("0", "gnd") else arg)
-                    if key in index:
-                        value += sign * float(values[index[key]])
-                        grad[index[key]] += sign
-                vals.append((value, grad))
-            elif tag in ("neg", "pos", "not"):
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[1], 0))
-                else:
-                    x, dx = vals.pop()
-                    if tag == "neg":
-                        vals.append((-x, -dx))
-                    elif tag == "pos":
-                        vals.append((x, dx))
-                    else:
-                        vals.append((float(not x), zero))
-            elif tag == "bin":
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[3], 0))
-                    stack.append((node[2], 0))
-                else:
-                    b = vals.pop()
-                    a = vals.pop()
-                    vals.append(_binary(str(node[1]), a, b, zero))
-            elif tag == "tern":
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[1], 0))
-                else:
-                    cond, _ = vals.pop()
-                    stack.append((node[2] if cond else node[3], 0))
-            elif tag == "call":
-                if state == 0:
-                    stack.append((node, 1))
-                    for arg in reversed(node[2]):
-                        stack.append((arg, 0))
-                else:
-                    count = len(node[2])
-                    args = vals[len(vals) - count :]
-                    del vals[len(vals) - count :]
-                    _, _, func = FUNCTIONS[str(node[1])]
-                    try:
-                        value, partials = func(*(a for a, _ in args))
-                    except (ValueError, OverflowError, ZeroDivisionError) as exc:
-                        raise ExpressionError(f"{node[1]}(): {exc}") from None
-                    grad = zero.copy()
-                    for p, (_, da) in zip(partials, args, strict=True):
-                        if p:
-                            grad = grad + p * da
-                    vals.append((value, grad))
-        value, grad = vals.pop()
+        return walk(self.tree, _Dual(values, index))
+
+
+#: A value with its gradient over :attr:`Behaviour.variables`.
+Dual = tuple[float, NDArray[np.float64]]
+
+
+class _Variables(Hooks[None]):
+    """Collects the variables an expression reads (both branches of every ``? :``)."""
+
+    def __init__(self, found: dict[tuple[str, str], None], ground: str) -> None:
+        self.found, self.ground = found, ground
+
+    def number(self, value: float) -> None:
+        return None
+
+    def name(self, name: str) -> None:
+        if name != TIME:
+            raise ExpressionError(f"unknown parameter {name!r}")
+        self.found.setdefault(("time", ""), None)
+
+    def ref(self, kind: str, args: tuple[str, ...]) -> None:
+        for arg in args:
+            key = (kind, self.ground if arg in ("0", "gnd") else arg)
+            if key != ("v", self.ground):
+                self.found.setdefault(key, None)
+
+    def unary(self, op: str, x: None) -> None:
+        return None
+
+    def binary(self, op: str, a: None, b: None) -> None:
+        return None
+
+    def ternary(self, cond: None, a: None, b: None) -> None:
+        return None
+
+    def call(self, name: str, args: list[None]) -> None:
+        return None
+
+
+class _Dual(Hooks[Dual]):
+    """Forward-mode differentiation: each node's value with its gradient."""
+
+    def __init__(self, values: NDArray[np.float64], index: Mapping[tuple[str, str], int]) -> None:
+        self.values, self.index = values, index
+        self.zero = np.zeros(len(index))
+
+    def number(self, value: float) -> Dual:
+        return value, self.zero
+
+    def name(self, name: str) -> Dual:
+        return self._unit(self.index[("time", "")])
+
+    def _unit(self, k: int) -> Dual:
+        grad = self.zero.copy()
+        grad[k] = 1.0
+        return float(self.values[k]), grad
+
+    def ref(self, kind: str, args: tuple[str, ...]) -> Dual:
+        value, grad = 0.0, self.zero.copy()
+        for sign, arg in zip((1.0, -1.0), args, strict=False):
+            k = self.index.get((kind, "0" if arg in ("0", "gnd") else arg))
+            if k is not None:
+                value += sign * float(self.values[k])
+                grad[k] += sign
+        return value, grad
+
+    def unary(self, op: str, x: Dual) -> Dual:
+        if op == "neg":
+            return -x[0], -x[1]
+        if op == "pos":
+            return x
+        return float(not x[0]), self.zero
+
+    def binary(self, op: str, a: Dual, b: Dual) -> Dual:
+        return _binary(op, a, b, self.zero)
+
+    def choose(self, cond: Dual) -> bool:
+        return bool(cond[0])
+
+    def call(self, name: str, args: list[Dual]) -> Dual:
+        _, _, func = FUNCTIONS[name]
+        try:
+            value, partials = func(*(a for a, _ in args))
+        except (ValueError, OverflowError, ZeroDivisionError) as exc:
+            raise ExpressionError(f"{name}(): {exc}") from None
+        grad = self.zero
+        for p, (_, da) in zip(partials, args, strict=True):
+            if p:
+                grad = grad + p * da
         return value, grad
 
 
@@ -464,17 +448,7 @@ def _binary(
     if op in ("**", "^"):
         value, px, py = _power(x, y)
         return value, px * dx + py * dy
-    result = {
-        "==": x == y,
-        "!=": x != y,
-        "<": x < y,
-        ">": x > y,
-        "<=": x <= y,
-        ">=": x >= y,
-        "&&": bool(x) and bool(y),
-        "||": bool(x) or bool(y),
-    }[op]
-    return float(result), zero
+    return logic(op, x, y), zero
 
 
 # ------------------------------------------------------------------------ diode

@@ -13,9 +13,12 @@ The grammar and arithmetic follow ngspice 39 (checked against ``ngspice -b``):
 - ``%`` is C's ``fmod``; ``int`` truncates; ``nint`` rounds half to even;
   comparisons and logic give 1 or 0.
 
-Parsing is a shunting-yard pass and evaluation walks an explicit stack, so
-neither recurses: 5000 nested signs or parentheses are fine. No Python
-``eval``: only arithmetic on floats is ever executed.
+Parsing is a shunting-yard pass and every evaluation goes through
+:func:`walk`, one explicit-stack walker with per-node hooks (floats and
+affine forms here; values with gradients and folded text in
+:mod:`netlistdyn.devices`), so neither recurses: 5000 nested signs or
+parentheses are fine. No Python ``eval``: only arithmetic on floats is
+ever executed.
 
 The same evaluator runs over :class:`Linear` values when an expression
 refers to node voltages ``v(a)``, ``v(a,b)`` or branch currents ``i(V1)``;
@@ -29,6 +32,7 @@ import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Generic, TypeVar
 
 from .values import split_number
 
@@ -143,6 +147,8 @@ _PREFIX_PREC = 9
 # AST nodes are tuples: ("num", v) ("name", n) ("ref", "v"|"i", args) ("neg"|"not", x)
 # ("bin", op, a, b) ("tern", c, a, b) ("call", name, args).
 Node = tuple
+#: The value type a :class:`Hooks` computes.
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -408,14 +414,139 @@ class Linear:
         return Linear(self.const + sign * other.const, tuple((k, c) for k, c in merged.items() if c != 0))
 
 
-def _describe(node: Node) -> str:
-    if node[0] == "ref":
-        return f"{node[1]}({','.join(node[2])})"
-    return "an expression"
+def logic(op: str, a: float, b: float) -> float:
+    """A comparison or logical operator (``==``, ``<``, ``&&``...): 1.0 or 0.0."""
+    return float(
+        {
+            "==": a == b,
+            "!=": a != b,
+            "<": a < b,
+            ">": a > b,
+            "<=": a <= b,
+            ">=": a >= b,
+            "&&": bool(a) and bool(b),
+            "||": bool(a) or bool(b),
+        }[op]
+    )
 
 
-class _Evaluator:
-    """Walks a tree with an explicit stack over floats or :class:`Linear` values."""
+class Hooks(Generic[T]):
+    """What :func:`walk` does at each kind of node; subclasses give the arithmetic.
+
+    Every method receives the values of the node's children, already
+    computed, and returns the node's value. The default :meth:`choose` walks
+    both branches of ``c ? a : b`` and hands them to :meth:`ternary`.
+    """
+
+    def number(self, value: float) -> T:
+        """A numeric literal."""
+        raise NotImplementedError
+
+    def name(self, name: str) -> T:
+        """A bare name (parameter, constant, ``time``)."""
+        raise NotImplementedError
+
+    def ref(self, kind: str, args: tuple[str, ...]) -> T:
+        """``v(a)``, ``v(a,b)`` (kind ``"v"``) or ``i(X)`` (kind ``"i"``)."""
+        raise NotImplementedError
+
+    def unary(self, op: str, x: T) -> T:
+        """``op`` is ``"neg"``, ``"pos"`` or ``"not"``."""
+        raise NotImplementedError
+
+    def binary(self, op: str, a: T, b: T) -> T:
+        """An infix operator (``+``, ``**``, ``&&``...)."""
+        raise NotImplementedError
+
+    def choose(self, cond: T) -> bool | None:
+        """The branch of ``c ? a : b`` to walk (True: ``a``), or None for both."""
+        return None
+
+    def ternary(self, cond: T, a: T, b: T) -> T:
+        """``c ? a : b`` when :meth:`choose` asked for both branches."""
+        raise NotImplementedError
+
+    def call(self, name: str, args: list[T]) -> T:
+        """A function call with its evaluated arguments."""
+        raise NotImplementedError
+
+
+def walk(tree: Node, hooks: Hooks[T]) -> T:
+    """Evaluate a parsed tree bottom-up with ``hooks``, on an explicit stack (no recursion).
+
+    Parameters
+    ----------
+    tree : tuple
+        :attr:`Expression.tree`.
+    hooks : Hooks
+        The arithmetic: floats, affine forms, values with gradients, text...
+
+    Returns
+    -------
+    object
+        The value ``hooks`` computes for the root.
+    """
+    # state 0: children not yet walked; 1: children on `values`; 2: both branches of a ternary.
+    stack: list[tuple[Node, int]] = [(tree, 0)]
+    values: list[T] = []
+    while stack:
+        node, state = stack.pop()
+        tag = node[0]
+        if tag == "num":
+            values.append(hooks.number(float(node[1])))
+        elif tag == "name":
+            values.append(hooks.name(str(node[1])))
+        elif tag == "ref":
+            values.append(hooks.ref(str(node[1]), tuple(node[2])))
+        elif tag in ("neg", "pos", "not"):
+            if state == 0:
+                stack.append((node, 1))
+                stack.append((node[1], 0))
+            else:
+                values.append(hooks.unary(tag, values.pop()))
+        elif tag == "bin":
+            if state == 0:
+                stack.append((node, 1))
+                stack.append((node[3], 0))
+                stack.append((node[2], 0))
+            else:
+                b = values.pop()
+                a = values.pop()
+                values.append(hooks.binary(str(node[1]), a, b))
+        elif tag == "tern":
+            if state == 0:
+                stack.append((node, 1))
+                stack.append((node[1], 0))
+            elif state == 1:
+                pick = hooks.choose(values[-1])
+                if pick is None:
+                    stack.append((node, 2))
+                    stack.append((node[3], 0))
+                    stack.append((node[2], 0))
+                else:
+                    values.pop()
+                    stack.append((node[2] if pick else node[3], 0))
+            else:
+                b = values.pop()
+                a = values.pop()
+                values.append(hooks.ternary(values.pop(), a, b))
+        elif tag == "call":
+            if state == 0:
+                stack.append((node, 1))
+                for arg in reversed(node[2]):
+                    stack.append((arg, 0))
+            else:
+                count = len(node[2])
+                args = values[len(values) - count :]
+                del values[len(values) - count :]
+                values.append(hooks.call(str(node[1]), args))
+        else:  # pragma: no cover - the parser makes no other node
+            raise ExpressionError(f"bad node {tag}")
+    return values.pop()
+
+
+class _Evaluator(Hooks[float | Linear]):
+    """Arithmetic over floats or :class:`Linear` values (``.param`` values, linear B sources)."""
 
     def __init__(
         self,
@@ -428,65 +559,7 @@ class _Evaluator:
         self.depth = depth
 
     def run(self, tree: Node) -> float | Linear:
-        stack: list[tuple[Node, int]] = [(tree, 0)]
-        values: list[float | Linear] = []
-        while stack:
-            node, state = stack.pop()
-            tag = node[0]
-            if tag == "num":
-                values.append(float(node[1]))
-            elif tag == "name":
-                values.append(self.lookup(str(node[1])))
-            elif tag == "ref":
-                kind, args = node[1], node[2]
-                if kind == "v":
-                    form = Linear(0.0, ((("v", args[0]), 1.0),))
-                    if len(args) == 2:
-                        form = form.plus(Linear(0.0, ((("v", args[1]), 1.0),)), -1.0)
-                    values.append(_normal_ground(form))
-                else:
-                    values.append(Linear(0.0, ((("i", args[0]), 1.0),)))
-            elif tag in ("neg", "pos", "not"):
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[1], 0))
-                else:
-                    x = values.pop()
-                    if tag == "neg":
-                        values.append(x.scaled(-1.0) if isinstance(x, Linear) else -x)
-                    elif tag == "pos":
-                        values.append(x)
-                    else:
-                        values.append(float(not self.number(x, "'!'")))
-            elif tag == "bin":
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[3], 0))
-                    stack.append((node[2], 0))
-                else:
-                    b = values.pop()
-                    a = values.pop()
-                    values.append(self.binary(str(node[1]), a, b))
-            elif tag == "tern":
-                if state == 0:
-                    stack.append((node, 1))
-                    stack.append((node[1], 0))
-                else:
-                    cond = self.number(values.pop(), "a condition '? :'")
-                    stack.append((node[2] if cond else node[3], 0))
-            elif tag == "call":
-                if state == 0:
-                    stack.append((node, 1))
-                    for arg in reversed(node[2]):
-                        stack.append((arg, 0))
-                else:
-                    count = len(node[2])
-                    args = values[len(values) - count :]
-                    del values[len(values) - count :]
-                    values.append(self.call(str(node[1]), args))
-            else:  # pragma: no cover - the parser makes no other node
-                raise ExpressionError(f"bad node {tag}")
-        result = values.pop()
+        result = walk(tree, self)
         if isinstance(result, Linear):
             if result.is_constant:
                 result = result.const
@@ -495,6 +568,30 @@ class _Evaluator:
         if not math.isfinite(result):
             raise ExpressionError(f"the value is not finite ({result})")
         return result
+
+    def number(self, value: float) -> float:
+        return value
+
+    def name(self, name: str) -> float:
+        return self.lookup(name)
+
+    def ref(self, kind: str, args: tuple[str, ...]) -> Linear:
+        if kind == "v":
+            form = Linear(0.0, ((("v", args[0]), 1.0),))
+            if len(args) == 2:
+                form = form.plus(Linear(0.0, ((("v", args[1]), 1.0),)), -1.0)
+            return _normal_ground(form)
+        return Linear(0.0, ((("i", args[0]), 1.0),))
+
+    def unary(self, op: str, x: float | Linear) -> float | Linear:
+        if op == "neg":
+            return x.scaled(-1.0) if isinstance(x, Linear) else -x
+        if op == "pos":
+            return x
+        return float(not self.number_of(x, "'!'"))
+
+    def choose(self, cond: float | Linear) -> bool:
+        return bool(self.number_of(cond, "a condition '? :'"))
 
     def lookup(self, name: str) -> float:
         if name in self.params:
@@ -506,7 +603,7 @@ class _Evaluator:
         raise ExpressionError(f"unknown parameter {name!r}")
 
     @staticmethod
-    def number(x: float | Linear, what: str) -> float:
+    def number_of(x: float | Linear, what: str) -> float:
         if isinstance(x, Linear):
             if not x.is_constant:
                 raise NonlinearError(f"{what} of a node voltage or branch current")
@@ -553,18 +650,7 @@ class _Evaluator:
                 return _pwr(a, b)
         except OverflowError:
             raise ExpressionError(f"overflow in {a:g} {op} {b:g}") from None
-        return float(
-            {
-                "==": a == b,
-                "!=": a != b,
-                "<": a < b,
-                ">": a > b,
-                "<=": a <= b,
-                ">=": a >= b,
-                "&&": bool(a) and bool(b),
-                "||": bool(a) or bool(b),
-            }[op]
-        )
+        return logic(op, a, b)
 
     def call(self, name: str, args: list[float | Linear]) -> float | Linear:
         if name in self.functions:
@@ -576,7 +662,7 @@ class _Evaluator:
             if any(isinstance(a, Linear) and not a.is_constant for a in args):
                 raise NonlinearError(f".func {name} applied to a node voltage or branch current")
             local = dict(self.params)
-            local.update({f: self.number(a, name) for f, a in zip(formals, args, strict=True)})
+            local.update({f: self.number_of(a, name) for f, a in zip(formals, args, strict=True)})
             return _Evaluator(local, self.functions, self.depth + 1).run(body.tree)
         if name not in FUNCTIONS:
             if name in ("agauss", "gauss", "aunif", "unif", "limit", "rand", "sunif", "sgauss"):
@@ -587,7 +673,7 @@ class _Evaluator:
             want = str(least) if least == most else f"{least} to {most}"
             extra = " (ngspice 39 silently uses the last of two)" if name == "log" and len(args) == 2 else ""
             raise ExpressionError(f"{name} takes {want} argument(s), got {len(args)}{extra}")
-        numbers = [self.number(a, f"{name}()") for a in args]
+        numbers = [self.number_of(a, f"{name}()") for a in args]
         try:
             result = float(func(*numbers))
         except (ValueError, OverflowError, TypeError) as exc:
