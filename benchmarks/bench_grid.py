@@ -43,15 +43,20 @@ from netlistdyn.descriptor import assemble
 from netlistdyn.parser import parse_file
 from netlistdyn.simulate import source_waveform
 from netlistdyn.transient import run_transient
+import resource
 path, rtol, outs, target = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[4]
+method = sys.argv[5]
 netlist = parse_file(path)
 system = assemble(netlist, outs)
 tran = netlist.tran
 times = np.linspace(0.0, tran.tstop, round(tran.tstop / tran.tstep) + 1)
 waves = [source_waveform(e).resolved(tran.tstep, tran.tstop) for e in netlist.sources]
-run = run_transient(system, waves, times, rtol=rtol)
+run = run_transient(system, waves, times, rtol=rtol, method=method)
 np.save(target, run.outputs)
-print(json.dumps({"status": run.status, "steps": run.stats["steps"], "unknowns": system.size}))
+keys = ("steps", "checks", "rejected", "factorisations", "factor_seconds", "step_seconds")
+print(json.dumps({"status": run.status, "unknowns": system.size, "method": method,
+                  "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  **{k: run.stats[k] for k in keys}}))
 """
 
 RADAU = r"""
@@ -89,6 +94,57 @@ for t0, t1 in zip(edges[:-1], edges[1:]):
             k += 1
 np.save(target, out)
 print(json.dumps({"status": "ok" if k == times.size else "incomplete"}))
+"""
+
+EXACT = r"""
+import json, sys
+import numpy as np, scipy.linalg as sl
+from netlistdyn.descriptor import assemble
+from netlistdyn.parser import parse_file
+from netlistdyn.simulate import source_waveform
+from netlistdyn.transient import SourceValues, breakpoints
+path, outs, target = sys.argv[1], sys.argv[2].split(","), sys.argv[3]
+netlist = parse_file(path)
+system = assemble(netlist, outs)
+tran = netlist.tran
+h = tran.tstep
+times = np.linspace(0.0, tran.tstop, round(tran.tstop / h) + 1)
+waves = [source_waveform(e).resolved(h, tran.tstop) for e in netlist.sources]
+points = breakpoints(waves, tran.tstop)
+assert np.abs(points / h - np.round(points / h)).max() < 1e-6, "corners off the output grid"
+E, A, B = (m.toarray() for m in (system.E, system.A, system.B))
+C, D = system.C.toarray(), system.D.toarray()
+dyn = np.flatnonzero(np.abs(E).sum(axis=0) + np.abs(E).sum(axis=1) > 0)
+alg = np.setdiff1d(np.arange(E.shape[0]), dyn)
+# eliminate the algebraic unknowns: x_a = -A_aa^-1 (A_ad x_d + B_a u)
+K = np.linalg.solve(A[np.ix_(alg, alg)], np.hstack([A[np.ix_(alg, dyn)], B[alg]])) if alg.size else None
+Ad, Bd = A[np.ix_(dyn, dyn)], B[dyn]
+Cd, Dd = C[:, dyn], D.copy()
+if alg.size:
+    Kx, Ku = -K[:, : dyn.size], -K[:, dyn.size :]
+    Ad = Ad + A[np.ix_(dyn, alg)] @ Kx
+    Bd = Bd + A[np.ix_(dyn, alg)] @ Ku
+    Cd = Cd + C[:, alg] @ Kx
+    Dd = Dd + C[:, alg] @ Ku
+Einv = np.linalg.inv(E[np.ix_(dyn, dyn)])
+Ad, Bd = Einv @ Ad, Einv @ Bd
+n, m = Ad.shape[0], Bd.shape[1]
+M = np.zeros((n + 2 * m, n + 2 * m))
+M[:n, :n], M[:n, n : n + m], M[n : n + m, n + m :] = Ad * h, Bd * h, np.eye(m)
+F = sl.expm(M)
+Phi, G0, G1 = F[:n, :n], F[:n, n : n + m], F[:n, n + m :]
+values = SourceValues(waves)
+u = values(0.0)
+x = -np.linalg.solve(Ad, Bd @ u)
+out = np.empty((times.size, C.shape[0]))
+out[0] = Cd @ x + Dd @ u
+for k in range(1, times.size):
+    u_new = values(times[k])
+    x = Phi @ x + G0 @ u + G1 @ (u_new - u)
+    u = u_new
+    out[k] = Cd @ x + Dd @ u
+np.save(target, out)
+print(json.dumps({"status": "ok", "states": n}))
 """
 
 NGSPICE_TIGHT = ".options reltol=1e-9 abstol=1e-15 vntol=1e-12 chgtol=1e-20\n"
@@ -140,8 +196,13 @@ def ngspice(netlist_text: str, probes: list[str], work: Path, key: str, tight: b
     )
 
 
-RUNS = ("ref", "ours", "ngspice", "tight", "radau")
-REFERENCE_RTOL = "1e-11"
+RUNS = ("ref", "exact", "ours", "ngspice", "tight", "radau")
+#: Reference runs: key -> (method, rtol). ``ref`` is the Padé run of earlier tables.
+REFERENCES = {"cfref": ("cf", "1e-12"), "ref": ("pade", "1e-11")}
+#: Runs an error can be measured against, in order of preference (``exact``: dense, small grids).
+REFERENCE_KEYS = ("exact", "cfref", "ref")
+METHOD_KEY = {"pade": "", "cf": "_cf"}
+METHOD_LABEL = {"pade": "Padé", "cf": "CF"}
 
 
 def stored_run(store: Path, key: str, make: Callable[[], tuple]) -> dict:
@@ -164,6 +225,12 @@ def main() -> int:
     parser.add_argument("--kinds", default="rc,rlc")
     parser.add_argument("--rtols", default="1e-6,1e-8,1e-10")
     parser.add_argument("--runs", default=",".join(RUNS), help=f"which runs to make (of {', '.join(RUNS)})")
+    parser.add_argument("--methods", default="cf", help="stepping methods of our runs (cf, pade)")
+    parser.add_argument(
+        "--reference",
+        default="exact",
+        help="reference for the errors (exact, cfref or ref; else the first found)",
+    )
     parser.add_argument("--store", type=Path, default=ROOT / "benchmarks" / "results" / "grid")
     parser.add_argument("--timeout", type=float, default=900.0, help="CPU seconds per run")
     args = parser.parse_args()
@@ -179,27 +246,35 @@ def main() -> int:
             probes = probe_nodes(size)
             outs = ",".join(f"v({p})" for p in probes)
 
-            def ours(rtol: str, key: str, path: Path = path, outs: str = outs) -> tuple:
+            def ours(rtol: str, key: str, method: str, path: Path = path, outs: str = outs) -> tuple:
                 target = store / f"{key}.npy"
                 rep, cpu, wall, status = child(
-                    [sys.executable, "-c", OURS, str(path), rtol, outs, str(target)], args.timeout
+                    [sys.executable, "-c", OURS, str(path), rtol, outs, str(target), method], args.timeout
                 )
                 values = np.load(target) if rep and target.exists() else None
                 return values, cpu, wall, status if rep is None else rep["status"], rep or {}
 
             plan: list[tuple[str, str, Callable[[], tuple]]] = []
-            if "ref" in runs or (store / f"{name}_ref.json").exists():
-                plan.append(
-                    (
-                        f"netlistdyn, rtol {REFERENCE_RTOL} (reference)",
-                        f"{name}_ref",
-                        partial(ours, REFERENCE_RTOL, f"{name}_ref"),
-                    )
-                )
-            for rtol in args.rtols.split(","):
-                key = f"{name}_rtol{rtol}"
-                if "ours" in runs or (store / f"{key}.json").exists():
-                    plan.append((f"netlistdyn, rtol {rtol}", key, partial(ours, rtol, key)))
+            for ref_key, (method, rtol) in REFERENCES.items():
+                key = f"{name}_{ref_key}"
+                if "ref" in runs or (store / f"{key}.json").exists():
+                    label = f"netlistdyn {METHOD_LABEL[method]}, rtol {rtol} (reference)"
+                    plan.append((label, key, partial(ours, rtol, key, method)))
+            key = f"{name}_exact"
+            if "exact" in runs or (store / f"{key}.json").exists():
+                label = "dense exact discretisation (expm, Van Loan)"
+                plan.append((label, key, partial(exact_run, path, outs, store, key, args.timeout)))
+            for method in args.methods.split(","):
+                for rtol in args.rtols.split(","):
+                    key = f"{name}{METHOD_KEY[method]}_rtol{rtol}"
+                    if "ours" in runs or (store / f"{key}.json").exists():
+                        plan.append(
+                            (
+                                f"netlistdyn {METHOD_LABEL[method]}, rtol {rtol}",
+                                key,
+                                partial(ours, rtol, key, method),
+                            )
+                        )
             for tight in (False, True):
                 key = f"{name}_ng_{'tight' if tight else 'default'}"
                 if ("tight" if tight else "ngspice") in runs or (store / f"{key}.json").exists():
@@ -213,24 +288,30 @@ def main() -> int:
                     ("scipy Radau, rtol 1e-8", key, partial(radau_run, path, outs, store, key, args.timeout))
                 )
             records = [(label, key, stored_run(store, key, make)) for label, key, make in plan]
-            ref_file = store / f"{name}_ref.npy"
-            if not ref_file.exists():
+            refs = {
+                k: store / f"{name}_{k}.npy" for k in REFERENCE_KEYS if (store / f"{name}_{k}.npy").exists()
+            }
+            if not refs:
                 print(f"\n{kind} {size}: no reference run yet")
                 continue
-            reference = np.load(ref_file)
+            ref_key = args.reference if args.reference in refs else next(iter(refs))
+            reference = np.load(refs[ref_key])
             swing = np.ptp(reference, axis=0)
             unknowns = next((r.get("unknowns") for _, _, r in records if r.get("unknowns")), "?")
-            print(f"\n{kind.upper()} grid {size}x{size} ({unknowns} unknowns), swing {swing.min():.3g} V")
-            print("| run | CPU [s] | wall [s] | load | max error / swing | status |")
-            print("|---|---:|---:|---:|---:|---|")
+            print(f"\n{kind.upper()} grid {size}x{size} ({unknowns} unknowns), swing {swing.min():.3g} V,")
+            print(f"errors against the {ref_key} run")
+            print("| run | CPU [s] | wall [s] | load | steps | max error / swing | status |")
+            print("|---|---:|---:|---:|---:|---:|---|")
             for label, key, record in records:
                 values_file = store / f"{key}.npy"
                 err = "-"
-                if values_file.exists() and not key.endswith("_ref"):
+                if values_file.exists() and key != f"{name}_{ref_key}":
                     values = np.load(values_file)
                     err = f"{float((np.abs(values - reference).max(axis=0) / swing).max()):.2g}"
                 cpu, wall, load = record["cpu"], record["wall"], record["load"]
-                print(f"| {label} | {cpu:.2f} | {wall:.2f} | {load:.1f} | {err} | {record['status']} |")
+                steps = record.get("steps", "")
+                status = record["status"]
+                print(f"| {label} | {cpu:.2f} | {wall:.2f} | {load:.1f} | {steps} | {err} | {status} |")
             sys.stdout.flush()
     return 0
 
@@ -239,6 +320,14 @@ def ngspice_run(text: str, probes: list[str], store: Path, key: str, tight: bool
     """One batch ngspice run for :func:`stored_run`."""
     values, cpu, wall, status = ngspice(text, probes, store, key, tight, timeout)
     return values, cpu, wall, status, {}
+
+
+def exact_run(path: Path, outs: str, store: Path, key: str, timeout: float) -> tuple:
+    """The dense exact discretisation (small grids only) for :func:`stored_run`."""
+    target = store / f"{key}.npy"
+    rep, cpu, wall, status = child([sys.executable, "-c", EXACT, str(path), outs, str(target)], timeout)
+    values = np.load(target) if rep and target.exists() else None
+    return values, cpu, wall, status if rep is None else rep["status"], rep or {}
 
 
 def radau_run(path: Path, outs: str, store: Path, key: str, timeout: float) -> tuple:

@@ -93,7 +93,7 @@ def simulate_large(
     from .display import signal_units
     from .initial import uses_uic
     from .simulate import Horizon, source_waveform
-    from .transient import DEFAULT_ORDER, run_transient
+    from .transient import CF_CHECK_DEGREE, CF_DEGREE, DEFAULT_METHOD, DEFAULT_ORDER, run_transient
     from .waveforms import check_breakpoints
 
     for value, flag in ((tstop, "--tstop"), (tstep, "--tstep")):
@@ -128,6 +128,10 @@ def simulate_large(
     started = time.process_time()
     run = run_transient(system, waves, times, x0, uic=uic, rtol=rtol, where=netlist.path, progress=progress)
     cpu = time.process_time() - started
+    if DEFAULT_METHOD == "cf":
+        scheme = f"CF rational of degree {CF_DEGREE} on (-inf, 0], checked against degree {CF_CHECK_DEGREE}"
+    else:
+        scheme = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
     start = "given unknowns" if x0 is not None else ("zero (UIC)" if uic else "DC operating point")
     stats = {**run.stats, "cpu_seconds": cpu, "unknowns": system.size}
     return Simulation(
@@ -137,7 +141,7 @@ def simulate_large(
         outputs=system.outputs,
         units=signal_units(netlist, system.outputs),
         method="descriptor",
-        setting=f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}], rtol={rtol:g}, from the {start}",
+        setting=f"{scheme}, rtol={rtol:g}, from the {start}",
         seconds=run.stats["seconds"],
         status=run.status,
         message=run.message,

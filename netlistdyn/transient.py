@@ -11,16 +11,23 @@ DC operating point
 Time stepping (``descriptor``)
     The inputs are linear between breakpoints, and are carried exactly by a
     nilpotent augmentation ``[x; u; u']``, so the only approximation is that
-    of the exponential: the L-stable [k−1/k] Padé approximant of ``e^{hM}``
-    (k = 12 by default: order 23), applied in product form — one real factor
-    ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair, where
-    ``(hM − p)⁻¹ y = (hA − pE)⁻¹ E y`` needs no inverse of the singular
-    ``E``. Because the approximant is strictly proper, the algebraic
-    unknowns (nodes without a capacitor, source currents) come out
-    consistent with the input at the end of every step. One complex sparse
-    LU per pole pair and step length (ordering: see :func:`_lu`), kept for
-    at most :data:`CACHE_LENGTHS` step lengths; only the outputs are stored.
-    Steps are checked and adapted: see :func:`run_transient`.
+    of the exponential ``e^{hM}``. Default (``cf``): the near-best type
+    (14, 14) rational approximation of e^x on the whole negative real axis
+    (CF poles, :mod:`netlistdyn._cf_table`; within 2.6e-14 of e^x there,
+    exact at 0), in partial fractions — one complex factor per conjugate
+    pole pair, applied as ``(hA − zE)⁻¹E`` — so on an RC circuit (real,
+    non-positive spectrum) a step of any length is accurate and the step is
+    the output step. Alternatively (``pade``) the L-stable [k−1/k] Padé
+    approximant (k = 12: order 23), accurate only for small ``|hλ|``, in
+    product form ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair. Either
+    way ``(hM − p)⁻¹ y = (hA − pE)⁻¹ E y`` needs no inverse of the singular
+    ``E``, and the algebraic unknowns (nodes without a capacitor, source
+    currents) come out consistent with the input at the end of every step
+    (for ``cf`` up to ``r(∞)`` = 2.6e-14 of their previous value). One
+    complex sparse LU per pole pair and step length (ordering: see
+    :func:`_lu`), kept for at most :data:`CACHE_LENGTHS` step lengths; only
+    the outputs are stored. Steps are checked and adapted: see
+    :func:`run_transient`.
 
 Breakpoints closer than :data:`SNAP` (relative to the output step) to an
 output time are moved onto it: the input then differs from the true one only
@@ -55,6 +62,13 @@ DEFAULT_ORDER = 12
 MAIN, DIAGONAL, LOW = "main", "diagonal", "low"
 #: Denominator degree of the lower-order check after breakpoints.
 CHECK_ORDER = 8
+#: Stepping methods: ``cf``, near-best rational approximations of e^x on the whole negative real
+#: axis (one step per output interval on RC circuits, whatever their stiffness), and ``pade``.
+METHODS = ("cf", "pade")
+#: Default stepping method.
+DEFAULT_METHOD = "cf"
+#: Degrees of the CF approximants: the step, and its check (see :class:`CFStep`).
+CF_DEGREE, CF_CHECK_DEGREE = 14, 12
 #: Default step check tolerance (relative to the largest voltage, or current, seen).
 DEFAULT_RTOL = 1e-10
 #: Tighter tolerances are raised to this: below it the two approximants differ by rounding
@@ -265,22 +279,77 @@ class PadeStep:
         return x
 
 
+class CFStep:
+    """One step of ``E x' = A x + B u`` (u linear on the step) with a near-best approximant of e^x.
+
+    ``r(z) = r∞ + Σ 2·Re(c_j/(z − z_j))`` (:mod:`netlistdyn._cf_table`: CF
+    poles, residues for the best maximum error on (−∞, 0] with ``r(0) = 1``
+    exactly) is within 2.2e-12 (degree 12) or 1e-13 (degree 14) of e^z on the
+    whole negative real axis, so on an RC circuit (real, non-positive
+    spectrum of the pencil) a step of any length is accurate; off the axis
+    (inductors) it is accurate only near 0, and the check halves the step.
+    Applied in partial fractions: ``r(hM) y = r∞ y + Σ 2·Re(c_j (hA − z_j E)⁻¹ E y)``
+    on the augmented ``[x; u; s]`` (input rows upper triangular as in
+    :class:`PadeStep`), one complex sparse LU per conjugate pole pair. ``r∞``
+    (= the error level) is kept: algebraic unknowns then carry ``r∞`` times
+    their previous value, below every tolerance allowed.
+
+    Parameters
+    ----------
+    system : DescriptorSystem
+    h : float
+        Step (s).
+    degree : int
+        Type (degree, degree); one of :data:`netlistdyn._cf_table.CF`.
+    """
+
+    def __init__(self, system: DescriptorSystem, h: float, degree: int) -> None:
+        from ._cf_table import CF
+
+        r_inf, pairs, _ = CF[degree]
+        self.h = h
+        self.r_inf = r_inf
+        self.E = sp.csr_array(system.E)
+        self.B = sp.csr_array(system.B)
+        hA = sp.csc_array(system.A * h, dtype=complex)
+        E = sp.csc_array(system.E, dtype=complex)
+        self.factors = [(_lu(hA - z * E), z, c) for z, c in pairs]
+
+    def __call__(self, x: NDArray[np.float64], u: NDArray[np.float64], s: NDArray[np.float64]) -> NDArray:
+        """State after the step from x, with input u at its start and slope s (units/s)."""
+        h = self.h
+        Ex = self.E @ x
+        out = self.r_inf * x
+        for lu, z, c in self.factors:
+            ua = (-h * s / z - u) / z
+            out = out + 2.0 * np.real(c * lu.solve(Ex - h * (self.B @ ua)))
+        return out
+
+
 class _Steppers:
     """Factorised steps by length (and kind), the least recently used dropped beyond a bound."""
 
-    def __init__(self, system: DescriptorSystem, order: int, stats: dict[str, float]) -> None:
+    def __init__(
+        self, system: DescriptorSystem, order: int, stats: dict[str, float], method: str = "pade"
+    ) -> None:
         self.system = system
         self.order = order
         self.stats = stats
-        self.cache: OrderedDict[tuple[float, str], PadeStep] = OrderedDict()
+        self.method = method
+        self.cache: OrderedDict[tuple[float, str], PadeStep | CFStep] = OrderedDict()
 
-    def __call__(self, h: float, kind: str = MAIN) -> PadeStep:
+    def __call__(self, h: float, kind: str = MAIN) -> PadeStep | CFStep:
+        if self.method == "cf" and kind != MAIN:
+            kind = LOW  # one check approximant for cf
         key = (float(f"{h:.13g}"), kind)
         step = self.cache.get(key)
         if step is None:
             tic = time.process_time()
-            order = CHECK_ORDER if kind == LOW else self.order
-            step = PadeStep(self.system, h, order, diagonal=kind == DIAGONAL)
+            if self.method == "cf":  # one check for every kind: the lower degree
+                step = CFStep(self.system, h, CF_DEGREE if kind == MAIN else CF_CHECK_DEGREE)
+            else:
+                order = CHECK_ORDER if kind == LOW else self.order
+                step = PadeStep(self.system, h, order, diagonal=kind == DIAGONAL)
             self.stats["factor_seconds"] += time.process_time() - tic
             self.stats["factorisations"] += len(step.factors)
             self.cache[key] = step
@@ -330,21 +399,25 @@ def run_transient(
     order: int = DEFAULT_ORDER,
     where: str = "<netlist>",
     progress: Callable[[float], None] | None = None,
+    method: str = DEFAULT_METHOD,
 ) -> TransientResult:
     """Simulate from the DC operating point (or x0 / zero with ``uic``) to ``times[-1]``.
 
     Each output interval is split at the breakpoints inside it; each piece
     is stepped with its length / 2^level. A step is checked against a second
-    approximant from the same state. On the first step after a breakpoint
-    (or an inconsistent UIC start), the [7/8] one: both L-stable, they damp
-    the stiff modes the inputs excite by different factors, and agree to
-    ~1e-13 where |hλ| ≲ 2. Every :data:`CHECK_INTERVAL`-th step otherwise,
-    the diagonal [12/12] one: it keeps the modulus of unresolved modes that
-    the [11/12] damps, so their difference is the content of a lightly
-    damped oscillation the step does not resolve. A difference above
-    ``rtol`` of the largest voltage seen (currents through a typical node
-    conductance, see :class:`_Scale`) halves the step and repeats it; a
-    check passed by a factor 10 lets the step double again.
+    approximant from the same state, on the first step after a breakpoint
+    (or an inconsistent UIC start) and every :data:`CHECK_INTERVAL`-th step.
+    ``cf``: against the degree-:data:`CF_CHECK_DEGREE` CF approximant; both
+    are near-exact on the real axis, so they disagree only where the step
+    puts modes off the axis (inductors: lightly damped oscillations) at
+    ``|hλ|`` they do not resolve. ``pade``: after a breakpoint against the
+    [7/8] approximant (both L-stable, they damp the stiff modes the inputs
+    excite by different factors, and agree to ~1e-13 where |hλ| ≲ 2),
+    otherwise against the diagonal [12/12] one (it keeps the modulus of
+    unresolved modes that the [11/12] damps). A difference above ``rtol`` of
+    the largest voltage seen (currents through a typical node conductance,
+    see :class:`_Scale`) halves the step and repeats it; a check passed by a
+    factor 10 lets the step double again.
 
     Parameters
     ----------
@@ -366,11 +439,17 @@ def run_transient(
         File name for messages.
     progress : callable, optional
         Called with the fraction done.
+    method : {"cf", "pade"}
+        ``cf``: steps with the degree-:data:`CF_DEGREE` CF approximant
+        (:class:`CFStep`), every check against degree :data:`CF_CHECK_DEGREE`;
+        ``pade``: the [order−1/order] Padé approximant, checked as above.
 
     Returns
     -------
     TransientResult
     """
+    if method not in METHODS:
+        raise ValueError(f"unknown stepping method {method!r}; choose from {', '.join(METHODS)}")
     values = SourceValues(waveforms)
     if not values.piecewise_linear():
         raise NetlistError(
@@ -395,7 +474,7 @@ def run_transient(
         jump = x0 is not None or uic
         first = _consistent(system, x, u_start, float(times[1] - times[0]), order) if jump else x
         out[0] = system.C @ first + system.D @ u_start
-        steppers = _Steppers(system, order, stats)
+        steppers = _Steppers(system, order, stats, method)
         points = breakpoints(waveforms, float(times[-1]))
         ctl = _Control(rtol, _Scale(first, system))
         bp_index = 0
