@@ -165,10 +165,12 @@ def _error_estimates(a: np.ndarray, w: np.ndarray, vl: np.ndarray, vr: np.ndarra
     s = |yᴴx| / (‖y‖‖x‖). Never below eps·|λ|.
     """
     abs_a = np.abs(a)
-    residual = a @ vr - vr * w
-    abs_x = np.abs(vr)
-    denom = abs_a @ abs_x + np.abs(w) * abs_x
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # An eigenvalue from A⁻¹ whose μ was 0 is ∞ here: its estimate comes out non-finite, and the
+        # caller treats that as "no estimate" (not a warning on the user's terminal).
+        residual = a @ vr - vr * w
+        abs_x = np.abs(vr)
+        denom = abs_a @ abs_x + np.abs(w) * abs_x
         ratio = np.where(denom > 0, np.abs(residual) / denom, np.where(residual == 0, 0.0, np.inf))
         eta_cw = np.max(ratio, axis=0)
         overlap = np.abs(np.einsum("ij,ij->j", vl.conj(), vr))
@@ -287,9 +289,16 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
         split = math.sqrt(np.linalg.norm(a, 2) / np.linalg.norm(inv, 2))
         k = int(np.sum(np.abs(w) >= split))
         take_a, take_i = order_a[:k], order_i[k:]
-        w = np.concatenate([w[take_a], lam_inv[take_i]])
-        vl = np.concatenate([vl[:, take_a], ul[:, take_i]], axis=1)
-        vr = np.concatenate([vr[:, take_a], ur[:, take_i]], axis=1)
+        small_w, small_l, small_r = lam_inv[take_i], ul[:, take_i], ur[:, take_i]
+        # An unresolved μ = 0 among the small ones (possible when no eigenvalue of A reaches the
+        # split, k = 0) keeps A's own value for that place rather than ∞.
+        lost = ~np.isfinite(small_w)
+        if np.any(lost):
+            from_a = order_a[k:][lost]
+            small_w[lost], small_l[:, lost], small_r[:, lost] = w[from_a], vl[:, from_a], vr[:, from_a]
+        w = np.concatenate([w[take_a], small_w])
+        vl = np.concatenate([vl[:, take_a], small_l], axis=1)
+        vr = np.concatenate([vr[:, take_a], small_r], axis=1)
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"
     abs_err = _error_estimates(a, w, vl, vr)
     abs_err = np.where(np.isfinite(abs_err), abs_err, np.inf)
