@@ -24,6 +24,7 @@ import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -323,6 +324,11 @@ class Behaviour:
         index = {key: k for k, key in enumerate(self.variables)}
         return walk(self.tree, _Dual(values, index))
 
+    def value(self, values: NDArray[np.float64]) -> float:
+        """The value alone at ``values`` (no gradient: several times faster than :meth:`evaluate`)."""
+        index = {key: k for k, key in enumerate(self.variables)}
+        return walk(self.tree, _Dual(values, index, gradient=False))[0]
+
 
 #: A value with its gradient over :attr:`Behaviour.variables`.
 Dual = tuple[float, NDArray[np.float64]]
@@ -362,11 +368,14 @@ class _Variables(Hooks[None]):
 
 
 class _Dual(Hooks[Dual]):
-    """Forward-mode differentiation: each node's value with its gradient."""
+    """Forward-mode differentiation: each node's value with its gradient (a scalar 0 without ``gradient``)."""
 
-    def __init__(self, values: NDArray[np.float64], index: Mapping[tuple[str, str], int]) -> None:
+    def __init__(
+        self, values: NDArray[np.float64], index: Mapping[tuple[str, str], int], gradient: bool = True
+    ) -> None:
         self.values, self.index = values, index
-        self.zero = np.zeros(len(index))
+        self.zero: Any = np.zeros(len(index)) if gradient else 0.0
+        self.gradient = gradient
 
     def number(self, value: float) -> Dual:
         return value, self.zero
@@ -375,17 +384,20 @@ class _Dual(Hooks[Dual]):
         return self._unit(self.index[("time", "")])
 
     def _unit(self, k: int) -> Dual:
+        if not self.gradient:
+            return float(self.values[k]), self.zero
         grad = self.zero.copy()
         grad[k] = 1.0
         return float(self.values[k]), grad
 
     def ref(self, kind: str, args: tuple[str, ...]) -> Dual:
-        value, grad = 0.0, self.zero.copy()
+        value, grad = 0.0, (self.zero.copy() if self.gradient else self.zero)
         for sign, arg in zip((1.0, -1.0), args, strict=False):
             k = self.index.get((kind, "0" if arg in ("0", "gnd") else arg))
             if k is not None:
                 value += sign * float(self.values[k])
-                grad[k] += sign
+                if self.gradient:
+                    grad[k] += sign
         return value, grad
 
     def unary(self, op: str, x: Dual) -> Dual:

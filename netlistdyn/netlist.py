@@ -33,10 +33,17 @@ class Kind(enum.Enum):
     DIODE = "D"
     BVOLTAGE = "BV"  # nonlinear behavioural voltage source (B V=, E value=)
     BCURRENT = "BI"  # nonlinear behavioural current source (B I=, G value=)
+    CAPACITANCE = "CC"  # nonlinear capacitor C={expr of its voltage}: i = C(v) dv/dt
+    CHARGE = "CQ"  # nonlinear capacitor Q={expr of its voltage}: i = dQ(v)/dt
+    INDUCTANCE = "LL"  # nonlinear inductor L={expr of its current}: v = L(i) di/dt
 
 
 #: Kinds that make a netlist nonlinear (compiled through :mod:`netlistdyn.nonlinear`).
-NONLINEAR_KINDS = frozenset({Kind.DIODE, Kind.BVOLTAGE, Kind.BCURRENT})
+NONLINEAR_KINDS = frozenset(
+    {Kind.DIODE, Kind.BVOLTAGE, Kind.BCURRENT, Kind.CAPACITANCE, Kind.CHARGE, Kind.INDUCTANCE}
+)
+#: Nonlinear capacitors and inductors (``expression`` is their folded C, Q or L).
+STORAGE_KINDS = frozenset({Kind.CAPACITANCE, Kind.CHARGE, Kind.INDUCTANCE})
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,7 +143,8 @@ class Element:
         For elements compiled from a behavioural source (``B``, or ``E``/``G``
         with ``value=``/``vol=``/``cur=``): the source's expression text, in
         which this element is one linear term; for ``BVOLTAGE``/``BCURRENT``
-        the whole (nonlinear) expression.
+        the whole (nonlinear) expression; for ``CAPACITANCE``, ``CHARGE`` and
+        ``INDUCTANCE`` the folded C(v) (F), Q(v) (C) or L(i) (H).
     diode : DiodeModel, optional
         For a ``DIODE``: its model (``value`` is then the area factor).
     """
@@ -290,7 +298,7 @@ class Netlist:
 
     @property
     def is_nonlinear(self) -> bool:
-        """True when some element is a diode or a nonlinear behavioural source."""
+        """True when some element is a diode, a nonlinear behavioural source, capacitor or inductor."""
         return any(e.kind in NONLINEAR_KINDS for e in self.elements)
 
     def element(self, key: str) -> Element:

@@ -90,6 +90,7 @@ class NonlinearSystem:
         self.nstates = nc + nl + nd + len(c.disp_index)
         self.offsets = (nc, nc + nl)
         index = {e.key: k for k, e in enumerate(c.inductors)}
+        # a nonlinear inductor's row of L⁻¹ is 1 here; f() divides it by L(i)
         L = np.diag([e.value for e in c.inductors]) if nl else np.zeros((0, 0))
         for e in netlist.elements:
             if e.kind is Kind.COUPLING and e.coupled is not None:
@@ -104,9 +105,10 @@ class NonlinearSystem:
         srows, scols, svals = [], [], []
         for k, e in enumerate(c.capacitors):
             br = c.branch_index[e.key]
-            rows.append(br)
-            cols.append(k)
-            vals.append(1.0 / e.value)
+            if e.key not in c.storage:  # a nonlinear one: 1/C(v), set by jacobian()
+                rows.append(br)
+                cols.append(k)
+                vals.append(1.0 / e.value)
             srows.append(k)
             scols.append(br)
             svals.append(1.0)
@@ -135,6 +137,11 @@ class NonlinearSystem:
             scols.append(c.node_index[node])
             svals.append(1.0)
         self._P_fixed = (rows, cols, vals)
+        #: (state index, branch, element) of nonlinear capacitors, and of nonlinear inductors
+        self._nl_caps = [
+            (k, c.branch_index[e.key], e) for k, e in enumerate(c.capacitors) if e.key in c.storage
+        ]
+        self._nl_inds = [(nc + k, c.storage[e.key]) for k, e in enumerate(c.inductors) if e.key in c.storage]
         self.S = sp.csr_array((svals, (srows, scols)), shape=(self.nstates, size))
         self.z = np.zeros(size)
         self.stats = {"f": 0, "jac": 0, "newton": 0}
@@ -198,7 +205,10 @@ class NonlinearSystem:
     def f(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """x' (C/s, A/s)."""
         self.stats["f"] += 1
-        return self.S @ self.solve(x, t)
+        out = self.S @ self.solve(x, t)
+        for k, store in self._nl_inds:  # i' = v / L(i)
+            out[k] /= store.value(float(x[k]))[0]
+        return out
 
     def jacobian(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64] | sp.csc_array:
         """∂f/∂x at (t, x): S (∂z/∂x), with J ∂z/∂x = P by implicit differentiation."""
@@ -214,11 +224,22 @@ class NonlinearSystem:
             rows += list(c._qbranch)
             cols += list(range(first, first + len(c.charged_diodes)))
             vals += list(1.0 / cap)
+        for k, branch, e in self._nl_caps:  # its voltage moves by dq/C(v)
+            rows.append(branch)
+            cols.append(k)
+            vals.append(1.0 / c.charge(e, c._v(z, e.nodes[0]) - c._v(z, e.nodes[1]))[1])
         P = sp.csc_array((vals, (rows, cols)), shape=(c.size, self.nstates))
         if isinstance(J, np.ndarray):
-            return np.asarray(self.S @ np.linalg.solve(J, P.toarray()))
-        dz = spla.splu(J.tocsc()).solve(P.toarray())  # one factorisation, every column at once
-        jac = np.asarray(self.S @ dz)
+            jac = np.asarray(self.S @ np.linalg.solve(J, P.toarray()))
+        else:
+            dz = spla.splu(J.tocsc()).solve(P.toarray())  # one factorisation, every column at once
+            jac = np.asarray(self.S @ dz)
+        if self._nl_inds:  # rows of i' = v / L(i): d/dx (v/L) = (dv/dx)/L − v L'(i)/L² on its own column
+            v = self.S @ z
+            for k, store in self._nl_inds:
+                value, slope = store.value(float(x[k]))
+                jac[k] /= value
+                jac[k, k] -= v[k] * slope / value**2
         return jac if self.nstates <= DENSE_JACOBIAN else sp.csc_array(jac)
 
     def outputs(
@@ -466,7 +487,7 @@ def _atol(system: NonlinearSystem, times: NDArray[np.float64], rtol: float) -> N
     iscale = max([*amps, vscale / max(min(resistors), 0.001) if resistors else 0.001])
     nc, nl = system.offsets
     scale = np.ones(system.nstates)
-    scale[:nc] = [abs(e.value) * vscale for e in c.capacitors]
+    scale[:nc] = [abs(c.charge(e, 0.0)[1]) * vscale for e in c.capacitors]
     scale[nc:nl] = iscale
     for k, d in enumerate(c.charged_diodes):
         model = d.element.diode

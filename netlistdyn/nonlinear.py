@@ -29,6 +29,7 @@ the usual named states (now deviations from the point).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -37,6 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
+from scipy.integrate import IntegrationWarning, quad
 
 from .devices import (
     DISPLACEMENT,
@@ -50,7 +52,7 @@ from .devices import (
 from .errors import NetlistError, SourceLocation
 from .expressions import ExpressionError
 from .mechanics import state_prefix
-from .netlist import GROUND, Diagnostic, Element, Kind, Netlist
+from .netlist import GROUND, STORAGE_KINDS, Diagnostic, Element, Kind, Netlist
 
 #: Relative Newton step at which the solution is converged (then one more step polishes it).
 NEWTON_RTOL = 1e-13
@@ -61,6 +63,11 @@ NEWTON_ABSTOL = 1e-21
 MAX_ITERATIONS = 200
 #: Up to this many unknowns the Newton step is a dense solve (faster than a sparse LU).
 DENSE_LIMIT = 60
+#: Capacitors (state: charge) and inductors (state: current), linear or not.
+CAPACITOR_KINDS = (Kind.CAPACITOR, Kind.CAPACITANCE, Kind.CHARGE)
+INDUCTOR_KINDS = (Kind.INDUCTOR, Kind.INDUCTANCE)
+#: Relative accuracy of the charge ∫ C(v) dv of a ``C={expr}`` capacitor (adaptive Gauss–Kronrod).
+QUAD_RTOL = 1e-13
 
 
 class NoOperatingPoint(NetlistError):
@@ -119,6 +126,156 @@ class _Behavioural:
     minus: int | None
     branch: int | None  # voltage sources: their current unknown
     refs: tuple[int | None, ...]  # unknown index of each variable (None: time)
+
+
+class Storage:
+    """A nonlinear capacitor (``C={expr}``, ``Q={expr}``) or inductor (``L={expr}``).
+
+    ngspice 39 reads ``C={C(v)}`` as i = C(v)·dv/dt (an incremental
+    capacitance), ``Q={Q(v)}`` as i = dQ(v)/dt and ``L={L(i)}`` as
+    v = L(i)·di/dt (measured with ``ngspice -b``). The expression may read
+    only the element's own voltage (capacitors) or, for an inductor, the
+    current ``i(Vx)`` of a voltage source in series with it (ngspice has no
+    vector for the inductor's own current once the value is an expression).
+
+    A capacitor's state is its charge q(v) = ∫₀^v C(u) du (``C=``: by
+    adaptive quadrature; ``Q=``: Q(v) − Q(0)); an inductor's state is its
+    current, as for a linear inductor.
+
+    Parameters
+    ----------
+    element : Element
+    keyed : Mapping
+        Every element of the netlist by key (an inductor's series source).
+    netlist : Netlist
+
+    Raises
+    ------
+    NetlistError
+        The expression reads anything else.
+    """
+
+    def __init__(self, element: Element, keyed: Mapping[str, Element], netlist: Netlist) -> None:
+        self.element = element
+        e = element
+        assert e.expression is not None
+        try:
+            self.behaviour = Behaviour.from_text(e.expression)
+        except ExpressionError as exc:
+            raise NetlistError(f"{e.name}: {exc}", e.loc) from None
+        names = self.behaviour.variables
+        self.capacitor = e.kind is not Kind.INDUCTANCE
+        what = {Kind.CAPACITANCE: "C=", Kind.CHARGE: "Q=", Kind.INDUCTANCE: "L="}[e.kind]
+        #: value of each variable per unit of the element's own voltage (V) or current (A)
+        self.weights = np.zeros(len(names))
+        if self.capacitor:
+            own = {("v", e.nodes[0]): 1.0, ("v", e.nodes[1]): -1.0}
+            if not names or any(key not in own for key in names):
+                raise NetlistError(
+                    f"{e.name}: {what}{{...}} may read only its own voltage v({e.nodes[0]},{e.nodes[1]}) "
+                    "(a capacitance of time or of other variables has no charge state)",
+                    e.loc,
+                )
+            if len(names) == 2:
+                if not self._difference_only(np.array([own[key] for key in names])):
+                    raise NetlistError(
+                        f"{e.name}: {what}{{...}} must depend on v({e.nodes[0]})-v({e.nodes[1]}) only", e.loc
+                    )
+                self.weights[:] = [max(own[key], 0.0) for key in names]
+            elif GROUND in e.nodes:
+                self.weights[0] = own[names[0]]
+            else:
+                raise NetlistError(
+                    f"{e.name}: {what}{{...}} reads one end of a floating capacitor; "
+                    f"write v({e.nodes[0]},{e.nodes[1]})",
+                    e.loc,
+                )
+        else:
+            sense = keyed.get(names[0][1]) if len(names) == 1 and names[0][0] == "i" else None
+            sign = _series_sign(sense, e, netlist) if sense is not None else None
+            if sign is None:
+                raise NetlistError(
+                    f"{e.name}: L={{...}} may read only i(Vx) of a voltage source Vx in series with it "
+                    "(as ngspice's manual writes it)",
+                    e.loc,
+                )
+            self.weights[0] = sign
+        self._cache: dict[float, tuple[float, float]] = {}
+        self._last_v = 0.0
+
+    def _difference_only(self, signs: NDArray[np.float64]) -> bool:
+        """True when the expression gives the same values when both ends move together."""
+        ends = signs > 0  # which variable is v(n+)
+        for s in (0.37, -0.81, 1.7):
+            try:
+                a = self.behaviour.evaluate(np.where(ends, s, 0.0))[0]
+                b = self.behaviour.evaluate(np.where(ends, s + 1.3, 1.3))[0]
+            except ExpressionError:
+                return False
+            if abs(a - b) > 1e-9 * max(abs(a), abs(b), 1e-300):
+                return False
+        return True
+
+    def value(self, s: float) -> tuple[float, float]:
+        """The expression (F, C or H) and its derivative at own voltage or current ``s``."""
+        try:
+            value, grad = self.behaviour.evaluate(self.weights * s)
+        except ExpressionError as exc:
+            raise NetlistError(f"{self.element.name}: {exc}", self.element.loc) from None
+        return value, float(grad @ self.weights)
+
+    def _capacitance(self, v: float) -> float:
+        try:
+            return self.behaviour.value(self.weights * v)
+        except ExpressionError as exc:
+            raise NetlistError(f"{self.element.name}: {exc}", self.element.loc) from None
+
+    def charge(self, v: float) -> tuple[float, float]:
+        """Charge q(v) (C, zero at 0 V) and incremental capacitance dq/dv (F) at voltage ``v``."""
+        if self.element.kind is Kind.CHARGE:
+            q, cap = self.value(v)
+            return q - self.value(0.0)[0], cap
+        if v in self._cache:
+            return self._cache[v]
+        cap = self.value(v)[0]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IntegrationWarning)
+            q = quad(self._capacitance, 0.0, v, epsabs=0.0, epsrel=QUAD_RTOL, limit=200)[0]
+        if len(self._cache) > 64:
+            self._cache.clear()
+        self._cache[v] = (q, cap)
+        return q, cap
+
+    def voltage(self, q: float) -> float:
+        """The voltage (V) whose charge is ``q`` (C): Newton on q(v), from the last answer."""
+        v = self._last_v
+        for _ in range(100):
+            charge, cap = self.charge(v)
+            if not cap > 0:
+                break
+            step = (charge - q) / cap
+            v -= step
+            if abs(step) <= 1e-14 * abs(v) + 1e-300:
+                self._last_v = v
+                return v
+        raise NetlistError(
+            f"{self.element.name}: no voltage carries the charge {q:.6g} C (is the capacitance positive?)",
+            self.element.loc,
+        )
+
+
+def _series_sign(sense: Element, inductor: Element, netlist: Netlist) -> float | None:
+    """+1 or −1 when voltage source ``sense`` carries the inductor's current (n+ to n−) or its opposite."""
+    if sense.kind is not Kind.VSOURCE:
+        return None
+    for node in set(sense.nodes) & set(inductor.nodes):
+        if node == GROUND:
+            continue
+        at = [e for e in netlist.elements if node in e.nodes and e.kind is not Kind.COUPLING]
+        if len(at) == 2:
+            same = (node == sense.nodes[1]) == (node == inductor.nodes[0])
+            return 1.0 if same else -1.0
+    return None
 
 
 def _vte(model_n: float) -> float:
@@ -181,10 +338,16 @@ class NonlinearCircuit:
         for node, elem in displaced.items():
             if node not in node_set:
                 raise NetlistError(f"{elem.name}: x({node}) names no node of the circuit", elem.loc)
+        #: Nonlinear capacitors and inductors by key.
+        self.storage = {e.key: Storage(e, keyed, netlist) for e in elements if e.kind in STORAGE_KINDS}
+        for e in elements:
+            if e.kind is Kind.COUPLING and any(k in self.storage for k in e.coupled or ()):
+                raise NetlistError(f"{e.name}: a coupling of a nonlinear inductor is not supported", e.loc)
         needs_branch = (
             Kind.VSOURCE,
             Kind.INDUCTOR,
             Kind.CAPACITOR,
+            *STORAGE_KINDS,
             Kind.VCVS,
             Kind.CCVS,
             Kind.BVOLTAGE,
@@ -231,8 +394,8 @@ class NonlinearCircuit:
                 )
         self.sources = netlist.sources
         self.source_index = {e.key: j for j, e in enumerate(self.sources)}
-        self.capacitors = [e for e in elements if e.kind is Kind.CAPACITOR]
-        self.inductors = [e for e in elements if e.kind is Kind.INDUCTOR]
+        self.capacitors = [e for e in elements if e.kind in CAPACITOR_KINDS]
+        self.inductors = [e for e in elements if e.kind in INDUCTOR_KINDS]
         self.charged_diodes = [d for d in self.diodes if d.charge_branch is not None]
         self._diode_arrays()
         self._linear: dict[str, sp.csc_array] = {}
@@ -399,12 +562,12 @@ class NonlinearCircuit:
                 elif kind is Kind.CCVS:
                     across(k, a, b)
                     add(k, self.branch_index[e.control_source or ""], -e.value)
-                elif kind is Kind.INDUCTOR:
+                elif kind in INDUCTOR_KINDS:
                     if mode == "dc":
                         across(k, a, b)
                     else:
                         add(k, k, 1.0)
-                elif kind is Kind.CAPACITOR:
+                elif kind in CAPACITOR_KINDS:
                     if mode == "dc":
                         add(k, k, 1.0)
                     else:
@@ -448,7 +611,8 @@ class NonlinearCircuit:
             nc = len(self.capacitors)
             nl = len(self.inductors)
             for k, e in enumerate(self.capacitors):
-                b[self.branch_index[e.key]] = x[k] / e.value
+                cap = self.storage.get(e.key)
+                b[self.branch_index[e.key]] = x[k] / e.value if cap is None else cap.voltage(float(x[k]))
             for k, e in enumerate(self.inductors):
                 b[self.branch_index[e.key]] = x[nc + k]
             nd = len(self.charged_diodes)
@@ -765,7 +929,7 @@ class NonlinearCircuit:
     def states_at(self, point: OperatingPoint) -> NDArray[np.float64]:
         """The state vector (capacitor charges, inductor currents, diode charges) at a point."""
         z = point.z
-        x = [e.value * (self._v(z, e.nodes[0]) - self._v(z, e.nodes[1])) for e in self.capacitors]
+        x = [self.charge(e, self._v(z, e.nodes[0]) - self._v(z, e.nodes[1]))[0] for e in self.capacitors]
         x += [float(z[self.branch_index[e.key]]) for e in self.inductors]
         for d in self.charged_diodes:
             model = d.element.diode
@@ -776,11 +940,19 @@ class NonlinearCircuit:
         x += [float(z[k]) for k in self.disp_index.values()]
         return np.array(x, dtype=float)
 
+    def charge(self, e: Element, v: float) -> tuple[float, float]:
+        """Charge (C) and incremental capacitance (F) of capacitor ``e`` at voltage ``v``."""
+        cap = self.storage.get(e.key)
+        return (e.value * v, e.value) if cap is None else cap.charge(v)
+
     @property
     def state_names(self) -> list[str]:
         """``q(C1)``, ``i(L1)``, ``q(D1)`` in the order of the state vector."""
         return (
-            [f"{state_prefix(e)}({e.name})" for e in self.capacitors]
+            [
+                f"q({e.name})" if e.key in self.storage else f"{state_prefix(e)}({e.name})"
+                for e in self.capacitors
+            ]
             + [f"{state_prefix(e)}({e.name})" for e in self.inductors]
             + [f"q({d.element.name})" for d in self.charged_diodes]
             + [f"x({node})" for node in self.disp_index]
@@ -846,6 +1018,17 @@ def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
                 out.append(Element(Kind.CAPACITOR, e.name, (anode, e.nodes[1]), cap, e.loc))
         elif e.kind in (Kind.BVOLTAGE, Kind.BCURRENT):
             out.extend(_linear_behavioural(bh_of[e.key], z, netlist))
+        elif e.kind in STORAGE_KINDS:  # its incremental capacitance dq/dv or inductance L(i)
+            store = circuit.storage[e.key]
+            if store.capacitor:
+                value = circuit.charge(e, circuit._v(z, e.nodes[0]) - circuit._v(z, e.nodes[1]))[1]
+                kind = Kind.CAPACITOR
+            else:
+                value = store.value(float(z[circuit.branch_index[e.key]]))[0]
+                kind = Kind.INDUCTOR
+            if not value > 0:
+                raise NetlistError(f"{e.name}: its {kind.name.lower()} at the point is {value:.6g}", e.loc)
+            out.append(Element(kind, e.name, e.nodes, value, e.loc))
         else:
             out.append(e)
     for node in circuit.disp_index:

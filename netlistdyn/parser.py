@@ -36,6 +36,7 @@ from .expressions import Expression, ExpressionError, NonlinearError, evaluate, 
 from .mechanics import KEYWORDS, build_mechanical, resolve_rods
 from .netlist import (
     GROUND,
+    STORAGE_KINDS,
     Diagnostic,
     DiodeModel,
     Element,
@@ -779,6 +780,10 @@ def _build_passive(line: Line, fields: list[str], ctx: _Context) -> list[Element
         raise NetlistError(f"{name}: expected 2 nodes, got {len(fields) - 1}", loc)
     nodes = (_node(fields[1]), _node(fields[2]))
     positional, keywords = _split_keywords(fields, 3, name, loc)
+    if letter in "cl":
+        storage = _nonlinear_storage(name, letter, nodes, positional, keywords, ctx, loc)
+        if storage is not None:
+            return [storage]
     values = ctx.values
     value: float | None = None
     model: tuple[str, dict[str, str], SourceLocation] | None = None
@@ -858,6 +863,51 @@ def _build_passive(line: Line, fields: list[str], ctx: _Context) -> list[Element
     if not parasitics:
         return [element]
     return _ltspice_parasitics(element, parasitics, ctx)
+
+
+def _reads_solution(token: str) -> bool:
+    """True when a value reads the circuit's solution (``v()``, ``i()``) or ``time``."""
+    try:
+        expr = parse(_unwrap(token))
+    except ExpressionError:
+        return False
+    return expr.refs or "time" in expr.names
+
+
+def _nonlinear_storage(
+    name: str,
+    letter: str,
+    nodes: tuple[str, str],
+    positional: list[str],
+    keywords: dict[str, str],
+    ctx: _Context,
+    loc: SourceLocation,
+) -> Element | None:
+    """ngspice's nonlinear ``C={expr}``, ``Q={expr}`` and ``L={expr}`` (None: an ordinary value)."""
+    key = "q" if letter == "c" and "q" in keywords else letter
+    text = keywords.get(key)
+    if any(_reads_solution(t) for t in positional):
+        raise NetlistError(
+            f"{name}: a value that reads v(), i() or time is written {letter.upper()}={{...}}"
+            + (" or Q={...}" if letter == "c" else ""),
+            loc,
+        )
+    if key != "q" and (text is None or not _reads_solution(text)):
+        return None
+    assert text is not None
+    others = sorted(set(keywords) - {key})
+    if others or positional:
+        what = f"{others[0]}=" if others else repr(positional[0])
+        raise NetlistError(f"{name}: {what} beside a nonlinear {key.upper()}= is not supported", loc)
+    from .devices import Behaviour, fold
+
+    try:
+        folded = fold(_unwrap(text), ctx.values.params, ctx.values.functions)
+        Behaviour.from_text(folded)
+    except ExpressionError as exc:
+        raise NetlistError(f"{name}: {exc}", loc) from None
+    kind = {"c": Kind.CAPACITANCE, "q": Kind.CHARGE, "l": Kind.INDUCTANCE}[key]
+    return Element(kind, name, nodes, 1.0, loc, expression=folded)
 
 
 def _ltspice_parasitics(element: Element, parasitics: dict[str, str], ctx: _Context) -> list[Element]:
@@ -1943,7 +1993,7 @@ def _rename(element: Element, prefix: str, port_map: dict[str, str], globals_: f
         return None if key is None else f"{low}.{key}"
 
     expression = element.expression
-    if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT) and expression is not None:
+    if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT, *STORAGE_KINDS) and expression is not None:
         from .devices import DISPLACEMENT, fold
 
         def scoped(kind: str, n: str) -> str:

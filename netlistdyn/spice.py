@@ -162,6 +162,9 @@ _LETTER = {
     Kind.DIODE: "D",
     Kind.BVOLTAGE: "B",
     Kind.BCURRENT: "B",
+    Kind.CAPACITANCE: "C",
+    Kind.CHARGE: "C",
+    Kind.INDUCTANCE: "L",
 }
 
 
@@ -337,24 +340,32 @@ def _add_element(
         )
         circuit.D(name, p, n, model=mname, area=element.value)
     elif kind in (Kind.BVOLTAGE, Kind.BCURRENT):
-        from .devices import DISPLACEMENT
-
-        text = element.expression or ""
-        text = re.sub(
-            r"i\(" + re.escape(DISPLACEMENT) + r"([^)]+)\)",
-            lambda m: f"v({_displacement_node(m.group(1))})",
-            text,
-        )
-        text = re.sub(r"i\(([^)]+)\)", lambda m: f"i({spice_name(netlist.element(m.group(1)))})", text)
-        text = re.sub(
-            r"v\(([^)]+)\)",
-            lambda m: "v(" + ",".join("0" if a == GROUND else a for a in m.group(1).split(",")) + ")",
-            text,
-        )
+        text = _expression_text(element.expression or "", netlist)
         expression = {("voltage_expression" if kind is Kind.BVOLTAGE else "current_expression"): text}
         circuit.BehavioralSource(name, p, n, **expression)
+    elif kind in (Kind.CAPACITANCE, Kind.CHARGE, Kind.INDUCTANCE):  # ngspice's C={..}, Q={..}, L={..}
+        key = {Kind.CAPACITANCE: "C", Kind.CHARGE: "Q", Kind.INDUCTANCE: "L"}[kind]
+        value = f"{key}={{{_expression_text(element.expression or '', netlist)}}}"
+        (circuit.L if kind is Kind.INDUCTANCE else circuit.C)(name, p, n, value)
     else:
         raise NotImplementedError(f"{element.label}: no ngspice translation for {kind.name}")
+
+
+def _expression_text(text: str, netlist: Netlist) -> str:
+    """A folded expression in ngspice's names (elements, ground, displacement integrators)."""
+    from .devices import DISPLACEMENT
+
+    text = re.sub(
+        r"i\(" + re.escape(DISPLACEMENT) + r"([^)]+)\)",
+        lambda m: f"v({_displacement_node(m.group(1))})",
+        text,
+    )
+    text = re.sub(r"i\(([^)]+)\)", lambda m: f"i({spice_name(netlist.element(m.group(1)))})", text)
+    return re.sub(
+        r"v\(([^)]+)\)",
+        lambda m: "v(" + ",".join("0" if a == GROUND else a for a in m.group(1).split(",")) + ")",
+        text,
+    )
 
 
 def _vector(analysis: Any, probe: Probe, netlist: Netlist) -> NDArray[np.float64]:

@@ -261,10 +261,16 @@ TRANSIENTS = {
 }
 
 
-def _ngspice_tran(text: str, tstop: float, outputs: list[str], tmp: Path) -> np.ndarray:
+#: ngspice's settings as a reference: Gear, tight tolerances (a small maximum step is set below).
+TRAN_OPTIONS = "reltol=1e-7 abstol=1e-14 vntol=1e-10 chgtol=1e-20 method=gear"
+
+
+def _ngspice_tran(
+    text: str, tstop: float, outputs: list[str], tmp: Path, options: str = TRAN_OPTIONS
+) -> np.ndarray:
     deck = tmp / "tran.cir"
-    # ngspice as a reference: Gear, tight tolerances, a small maximum step, from zero (uic)
-    deck.write_text(text + ".options reltol=1e-7 abstol=1e-14 vntol=1e-10 chgtol=1e-20 method=gear\n.end\n")
+    # from zero (uic), with a maximum step of tstop/20000
+    deck.write_text(text + f".options {options}\n.end\n")
     data = tmp / "tran.txt"
     script = "\n".join(
         [
