@@ -283,6 +283,36 @@ K1 L0 L1 0.35233339568631561
 """
 
 
+SECOND_ZERO_FROM_A = """two inductor loops (L0 ∥ L6, L0–L3–L2) but one structural zero in the branch pencil
+Vin n1 0 1
+L0 n2 n1 64501.496581134365
+R1 n1 n4 8.0859253528517749e-08
+L2 n2 n3 7.4315557837196092e-12
+L3 n3 n1 0.012175067471025154
+R4 n4 n2 1.8925668303022776
+R5 n4 n2 2.7932687895714157
+L6 n1 n2 209725.5053546651
+Rgn1 n1 0 0.042818958034934233
+Rgn2 n2 0 1.6551665437901654e-09
+Rgn3 n3 0 0.72580434973739927
+Rgn4 n4 0 2.5166378153031973e-14
+K1 L0 L2 0.30332539299625394
+.end
+"""
+
+
+def test_unverified_eigenvalue_bar_covers_the_reduction():
+    """Exact roots {0, 0, −1.3594724943748036e-7, −107561534076.46057}: the circuit equations confirm
+    the two non-zero roots and one zero (topology); A turns the second zero into −1.36e-7 (a
+    normwise perturbation eps·‖A‖, ‖A‖ ~ 1e11 1/s) and its componentwise bar said 3.6e-13. The bar
+    of an eigenvalue the pencil cannot confirm must cover the exact 0; the verdict may then only be
+    the exact one or "undetermined" (a double zero needs a multiplicity argument)."""
+    netlist, _, eig = _analyse(SECOND_ZERO_FROM_A, ["v(n1)"])
+    exact = exact_natural_frequencies(netlist)
+    _assert_within_bars(eig.modes, exact)
+    assert eig.verdict in ("marginally stable", "undetermined")
+
+
 @pytest.mark.parametrize(
     "text",
     [
