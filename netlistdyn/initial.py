@@ -19,9 +19,12 @@ variables it names, the rest 0).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .errors import NetlistError, SourceLocation
@@ -87,14 +90,75 @@ def transient_start(netlist: Netlist, model: StateSpaceModel, u0: NDArray[np.flo
     given = [e for e in netlist.elements if e.ic is not None and e.kind in (Kind.CAPACITOR, Kind.INDUCTOR)]
     if uses_uic(netlist):
         return _uic_start(netlist, model, u0, given)
-    warnings = tuple(
-        Diagnostic(e.loc, f"{e.name}: IC= applies only with .tran ... UIC (ngspice ignores it too)")
-        for e in given
-    )
+    warnings = ignored_ic_warnings(netlist)
     if netlist.initial_conditions:
         x0 = _forced_operating_point(netlist, model, u0)
         return Start(x0, False, "DC operating point with the .ic node voltages held", warnings)
     return Start(operating_point(netlist, model, u0), False, "DC operating point", warnings)
+
+
+def ignored_ic_warnings(netlist: Netlist) -> tuple[Diagnostic, ...]:
+    """Without ``UIC``: one warning per element ``IC=``, which does not apply (as in ngspice)."""
+    return tuple(
+        Diagnostic(e.loc, f"{e.name}: IC= applies only with .tran ... UIC (ngspice ignores it too)")
+        for e in netlist.elements
+        if e.ic is not None and e.kind in (Kind.CAPACITOR, Kind.INDUCTOR)
+    )
+
+
+def held_nodes(netlist: Netlist) -> dict[str, tuple[float, SourceLocation]]:
+    """The ``.ic`` node voltages (V) and where each was given; the last one for a node wins.
+
+    Raises
+    ------
+    NetlistError
+        For the ground node or a node the netlist does not have.
+    """
+    conditions: dict[str, tuple[float, SourceLocation]] = {}
+    for ic in netlist.initial_conditions:
+        conditions[ic.node] = (ic.value, ic.loc)  # the last one wins, as on one .ic line
+    known = {n for e in netlist.elements for n in e.nodes}
+    for node, (_, loc) in conditions.items():
+        if node == GROUND:
+            raise NetlistError(".ic: the ground node's voltage is 0 by definition", loc)
+        if node not in known:
+            raise NetlistError(f".ic: no node {node!r} in the netlist", loc)
+    return conditions
+
+
+def holder_elements(
+    nodes: list[str], conditions: dict[str, tuple[float, SourceLocation]]
+) -> tuple[Element, ...]:
+    """A 0 A current source from ground into each held node (its current is solved for)."""
+    return tuple(
+        Element(Kind.ISOURCE, f"ic.hold{k}", (GROUND, node), 0.0, conditions[node][1])
+        for k, node in enumerate(nodes)
+    )
+
+
+def uic_values(netlist: Netlist) -> list[tuple[Element, float]]:
+    """Under ``UIC``, each capacitor's and inductor's nonzero starting value, in netlist order.
+
+    A capacitor starts at its ``IC=`` voltage, else at the difference of its nodes' ``.ic``
+    voltages (a node not named counts as 0 V); an inductor at its ``IC=`` current, else 0.
+    """
+    ic_nodes: dict[str, float] = {GROUND: 0.0}
+    for ic in netlist.initial_conditions:
+        ic_nodes[ic.node] = ic.value
+    out = []
+    for element in netlist.elements:
+        if element.kind is Kind.CAPACITOR:
+            if element.ic is not None:
+                value = element.ic
+            else:
+                value = ic_nodes.get(element.nodes[0], 0.0) - ic_nodes.get(element.nodes[1], 0.0)
+        elif element.kind is Kind.INDUCTOR:
+            value = element.ic if element.ic is not None else 0.0
+        else:
+            continue
+        if value != 0:
+            out.append((element, value))
+    return out
 
 
 def _where(netlist: Netlist) -> SourceLocation:
@@ -164,21 +228,10 @@ def _forced_operating_point(
     """
     from .formulate import compile_netlist
 
-    conditions: dict[str, tuple[float, SourceLocation]] = {}
-    for ic in netlist.initial_conditions:
-        conditions[ic.node] = (ic.value, ic.loc)  # the last one wins, as on one .ic line
-    known = {n for e in netlist.elements for n in e.nodes}
-    for node, (_, loc) in conditions.items():
-        if node == GROUND:
-            raise NetlistError(".ic: the ground node's voltage is 0 by definition", loc)
-        if node not in known:
-            raise NetlistError(f".ic: no node {node!r} in the netlist", loc)
+    conditions = held_nodes(netlist)
     nodes = list(conditions)
     first = netlist.initial_conditions[0].loc
-    holders = tuple(
-        Element(Kind.ISOURCE, f"ic.hold{k}", (GROUND, node), 0.0, conditions[node][1])
-        for k, node in enumerate(nodes)
-    )
+    holders = holder_elements(nodes, conditions)
     held = replace(netlist, elements=netlist.elements + holders)
     try:
         extended = compile_netlist(held, [f"v({node})" for node in nodes])
@@ -214,24 +267,14 @@ def _uic_start(
     netlist: Netlist, model: StateSpaceModel, u0: NDArray[np.float64], given: list[Element]
 ) -> Start:
     """Capacitor and inductor starting values of ``UIC`` on the states they carry."""
-    ic_nodes: dict[str, float] = {GROUND: 0.0}
-    for ic in netlist.initial_conditions:
-        ic_nodes[ic.node] = ic.value
     index = {s: k for k, s in enumerate(model.states)}
     shifted = {shift.state for shift in model.info.shifts}
     x0 = np.zeros(model.nstates)
-    for element in netlist.elements:
+    for element, value in uic_values(netlist):
         if element.kind is Kind.CAPACITOR:
-            if element.ic is not None:
-                value = element.ic
-            else:
-                value = ic_nodes.get(element.nodes[0], 0.0) - ic_nodes.get(element.nodes[1], 0.0)
             state, start = f"q({element.name})", element.value * value
-        elif element.kind is Kind.INDUCTOR:
-            value = element.ic if element.ic is not None else 0.0
-            state, start = f"i({element.name})", value
         else:
-            continue
+            state, start = f"i({element.name})", value
         if start == 0:
             continue
         what = "voltage" if element.kind is Kind.CAPACITOR else "current"
@@ -288,3 +331,134 @@ def around_equilibrium(
     waves = tuple(_offset(w, float(c)) for w, c in zip(signals.waveforms, u0, strict=True))
     y0 = model.C_sparse @ x0 + model.D_sparse @ u0
     return replace(signals, waveforms=waves), np.asarray(y0, dtype=float)
+
+
+# --- the sparse descriptor form (netlistdyn.descriptor) ------------------------------------
+
+
+def descriptor_start(
+    netlist: Netlist, system: Any, outputs: Sequence[str] | None, u0: NDArray[np.float64]
+) -> tuple[NDArray[np.float64] | None, str, tuple[Diagnostic, ...]]:
+    """The same rules on the descriptor unknowns ``x`` of ``E x' = A x + B u``.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    system : DescriptorSystem
+        ``assemble(netlist, outputs)``.
+    outputs : sequence of str, optional
+        The outputs ``system`` was assembled with (they decide which sources it reduces).
+    u0 : numpy.ndarray
+        Every input's value at t = 0 (V or A).
+
+    Returns
+    -------
+    x0 : numpy.ndarray or None
+        Unknowns to start from (the transient then makes the algebraic ones consistent and
+        keeps the charges and fluxes ``E x0``), or None: the plain DC operating point, or
+        zero under ``UIC`` without values.
+    how : str
+        One phrase for reports.
+    warnings : tuple of Diagnostic
+        ``IC=`` values that do not apply (no ``UIC``).
+
+    Under ``UIC`` each capacitor's charge C·v and each inductor's current are set
+    (:func:`uic_values`); the node voltages are any whose capacitor charges sum, node by
+    node, to those charges (all that the transient reads of them). Without ``UIC``, ``.ic``
+    nodes are held by current sources during the operating point (:func:`holder_elements`).
+    """
+    if uses_uic(netlist):
+        values = uic_values(netlist)
+        if not values:
+            return None, "zero (UIC)", ()
+        return _descriptor_uic(netlist, system, outputs, values), "IC= and .ic values (UIC)", ()
+    warnings = ignored_ic_warnings(netlist)
+    if not netlist.initial_conditions:
+        return None, "DC operating point", warnings
+    x0 = _descriptor_held(netlist, system, outputs, u0)
+    return x0, "DC operating point with the .ic node voltages held", warnings
+
+
+def _extended(netlist: Netlist, system: Any, extra: tuple[Element, ...], outputs: Sequence[str]) -> Any:
+    """The system assembled with extra current sources (same unknowns: they reduce nothing)."""
+    from .descriptor import assemble
+
+    extended = assemble(replace(netlist, elements=netlist.elements + extra), outputs)
+    if tuple(extended.variables) != tuple(system.variables):  # pragma: no cover - current sources
+        raise RuntimeError("the initial-condition sources changed the descriptor unknowns")
+    return extended
+
+
+def _descriptor_uic(
+    netlist: Netlist, system: Any, outputs: Sequence[str] | None, values: list[tuple[Element, float]]
+) -> NDArray[np.float64]:
+    import scipy.sparse.linalg as spla
+
+    x0 = np.zeros(system.size)
+    index = {name.lower(): k for k, name in enumerate(system.variables)}
+    for element, value in values:
+        if element.kind is Kind.INDUCTOR:
+            x0[index[f"i({element.name})".lower()]] = value
+    caps = [(e, v) for e, v in values if e.kind is Kind.CAPACITOR]
+    if not caps:
+        return x0
+    # A charge q between a capacitor's nodes enters E x like a current source's column enters B.
+    sources = tuple(Element(Kind.ISOURCE, f"ic.q{k}", e.nodes, 0.0, e.loc) for k, (e, _) in enumerate(caps))
+    extended = _extended(netlist, system, sources, list(outputs) if outputs else _voltages(netlist))
+    m = len(system.inputs)
+    charges = np.array([e.value * v for e, v in caps])
+    target = -(extended.B[:, m:] @ charges)[: system.nnodes]
+    E = system.E.tocsr()[: system.nnodes].tocsc()[:, : system.nnodes]
+    rows = np.flatnonzero(np.diff(E.tocsr().indptr))
+    block = E[rows][:, rows]
+    try:
+        x0[rows] = spla.splu(sp.csc_matrix(block)).solve(target[rows])
+    except RuntimeError:  # a group of capacitors reaching no ground: any voltages with those charges
+        x0[rows] = spla.lsqr(block, target[rows], atol=1e-15, btol=1e-15)[0]
+    residual = np.abs(E @ x0[: system.nnodes] - target)
+    if not np.all(residual <= 1e-9 * max(float(np.abs(target).max()), np.finfo(float).tiny)):
+        raise NetlistError(
+            "UIC: the capacitors' starting charges cannot be placed on the nodes", caps[0][0].loc
+        )
+    return x0
+
+
+def _voltages(netlist: Netlist) -> list[str]:
+    return [f"v({node})" for node in netlist.nodes]
+
+
+def _descriptor_held(
+    netlist: Netlist, system: Any, outputs: Sequence[str] | None, u0: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    import scipy.sparse as sparse
+    import scipy.sparse.linalg as spla
+
+    conditions = held_nodes(netlist)
+    nodes = list(conditions)
+    first = netlist.initial_conditions[0].loc
+    shown = list(outputs) if outputs else _voltages(netlist)
+    extended = _extended(
+        netlist, system, holder_elements(nodes, conditions), shown + [f"v({node})" for node in nodes]
+    )
+    n, m, k = system.size, len(system.inputs), len(nodes)
+    A, B = extended.A, extended.B.tocsc()
+    C, D = extended.C.tocsr()[-k:], extended.D.tocsr()[-k:]
+    matrix = sparse.bmat([[A, B[:, m:]], [C, D[:, m:]]], format="csc")
+    values = np.array([conditions[node][0] for node in nodes])
+    rhs = np.concatenate([-(B[:, :m] @ u0), values - D[:, :m] @ u0])
+    try:
+        solution = spla.splu(matrix).solve(rhs)
+    except RuntimeError:
+        solution = None
+    if (
+        solution is None
+        or not np.all(np.isfinite(solution))
+        or (np.linalg.norm(matrix @ solution - rhs) > 1e-8 * max(float(np.linalg.norm(rhs)), 1e-300))
+    ):
+        raise NetlistError(
+            ".ic: the held node voltages leave no unique operating point (a node held twice through "
+            "other held nodes and sources, a node a supply fixes, or a node only capacitors reach); "
+            "use UIC instead",
+            first,
+        )
+    return solution[:n]

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .descriptor import DescriptorSystem, assemble, supports
-from .errors import NetlistError, UsageError
+from .errors import UsageError
 from .netlist import Kind, Netlist
 
 #: Above this many MNA unknowns, ``auto`` uses the descriptor form.
@@ -67,6 +67,7 @@ def simulate_large(
     ics: Sequence[str],
     progress: Callable[[float], None] | None = None,
     rtol: float = 1e-10,
+    warn: Callable[[Any], None] | None = None,
 ) -> Any:
     """Run ``simulate`` on the descriptor form.
 
@@ -83,6 +84,12 @@ def simulate_large(
         Fraction-done callback.
     rtol : float
         Step check tolerance (see :func:`netlistdyn.transient.run_transient`).
+    warn : callable, optional
+        Receives each warning (an ``IC=`` that does not apply without ``UIC``).
+
+    The start follows ngspice's rules as the explicit model does (:mod:`netlistdyn.initial`):
+    the DC operating point, with ``.ic`` node voltages held during it; under ``UIC`` the
+    ``IC=`` and ``.ic`` values, else zero; ``ics`` replaces all of this.
 
     Returns
     -------
@@ -115,16 +122,15 @@ def simulate_large(
         [(e.name, e.loc, w) for e, w in zip(netlist.sources, waves, strict=True)], horizon.tstop
     )
     uic = uses_uic(netlist)
-    if not ics:
-        given = [e for e in netlist.elements if e.ic is not None and uic]
-        if given or netlist.initial_conditions:
-            loc = given[0].loc if given else netlist.initial_conditions[0].loc
-            raise NetlistError(
-                "the sparse descriptor form does not apply the netlist's IC= and .ic values; "
-                "give them as --ic v(node)=... i(L1)=... (or use the dense model)",
-                loc,
-            )
     x0 = _initial_unknowns(system, ics)
+    start = "given unknowns"
+    if x0 is None:  # the netlist's own IC= and .ic, by ngspice's rules (netlistdyn.initial)
+        from .initial import descriptor_start
+
+        u0 = np.array([float(np.asarray(w(np.array([0.0])))[0]) for w in waves])
+        x0, start, warnings = descriptor_start(netlist, system, outputs, u0)
+        for warning in warnings if warn is not None else ():
+            warn(warning)
     started = time.process_time()
     run = run_transient(system, waves, times, x0, uic=uic, rtol=rtol, where=netlist.path, progress=progress)
     cpu = time.process_time() - started
@@ -132,7 +138,6 @@ def simulate_large(
         scheme = f"CF rational of degree {CF_DEGREE} on (-inf, 0], checked against degree {CF_CHECK_DEGREE}"
     else:
         scheme = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
-    start = "given unknowns" if x0 is not None else ("zero (UIC)" if uic else "DC operating point")
     stats = {**run.stats, "cpu_seconds": cpu, "unknowns": system.size}
     return Simulation(
         title=netlist.title,
@@ -147,6 +152,7 @@ def simulate_large(
         message=run.message,
         horizon=horizon,
         stats=stats,
+        start=start,
     )
 
 
