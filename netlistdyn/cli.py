@@ -741,6 +741,30 @@ def validate(
 )
 @coordinates_option
 @click.option("--force", is_flag=True, help="Run an explicit method on a stiff model anyway.")
+@click.option(
+    "--superpose",
+    is_flag=True,
+    help="Linear superposition: split the independent sources into --jobs groups (sources sharing "
+    "breakpoints together), simulate each group alone (the others at 0; the initial state in one "
+    "more job) as independent tasks on --scheduler, and sum the outputs. Each job runs at rtol/jobs "
+    "and reports its own error estimate; the sum's estimate is the sum of theirs (the descriptor "
+    "form's jobs report none). Linear netlists only.",
+)
+@click.option(
+    "--jobs",
+    type=COUNT,
+    default=None,
+    help="--superpose: number of source groups (default 2); the local workers are capped at the CPUs "
+    "unless --oversubscribe.",
+)
+@click.option("--oversubscribe", is_flag=True, help="--superpose: allow more local workers than CPUs.")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="processes|dask|tcp://HOST:PORT",
+    help="--superpose: where the jobs run, as for sweep: this machine's process pool (default), a local "
+    "Dask cluster, or a running Dask scheduler (needs dask[distributed]).",
+)
 @path_option("--csv", "Write the outputs as CSV.", "csv_path")
 @path_option("--plot", "Write a plot (PNG, or the format of the file's extension: .svg, .pdf).")
 @path_option("--animate", "Animate a mechanical netlist into a .gif (or .mp4 with ffmpeg).")
@@ -775,6 +799,10 @@ def simulate(
     ics: tuple[str, ...],
     coordinates: str | None,
     force: bool,
+    superpose: bool,
+    jobs: int | None,
+    oversubscribe: bool,
+    scheduler: str | None,
     csv_path: str | None,
     plot: str | None,
     animate: str | None,
@@ -805,13 +833,18 @@ def simulate(
         from .validity import rod_angles, validity_warnings
 
         check_outputs(csv=csv_path, plot=plot, animate=animate, out=out)
+        split = _superpose_options(superpose, jobs, oversubscribe, scheduler, coordinates, animate)
         parsed = parse_netlist(netlist, parse_param_overrides(params))
+        if split is not None:
+            from .superpose import check_linear
+
+            check_linear(parsed)
         if descriptor_wanted(parsed, method):  # large circuit: sparse descriptor form
             refused = [f for f, on in (("--coordinates", coordinates), ("--animate", animate)) if on]
             if refused:
                 raise UsageError(f"{refused[0]} is not available in the sparse descriptor form")
             return _simulate_descriptor(
-                parsed, netlist, outputs, tstop, tstep, rtol, ics, csv_path, plot, fmt, out, quiet
+                parsed, netlist, outputs, tstop, tstep, rtol, ics, csv_path, plot, fmt, out, quiet, split
             )
         angles = rod_angles(parsed)
         extra = list(angles)
@@ -822,21 +855,27 @@ def simulate(
             extra += position_variables(parsed)
         parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra), parsed)
         full = prepared.full
-        with progress.bar("simulate", 100, quiet, unit="%") as bar:
-            run = simulation_pipeline(
-                parsed,
-                full,
-                tstop,
-                tstep,
-                method,
-                rtol,
-                atol,
-                prepared.x0,
-                force,
-                progress.fraction_callback(bar),
-                warn=lambda w: click.echo(str(w), err=True),
-                step=step,
-            )
+        if split is not None:
+            from .superpose import explicit_task
+
+            task, span = explicit_task(parsed, full, tstop, tstep, method, rtol, atol, prepared.x0, force)
+            run = _run_superposed(task, span, split, quiet)
+        else:
+            with progress.bar("simulate", 100, quiet, unit="%") as bar:
+                run = simulation_pipeline(
+                    parsed,
+                    full,
+                    tstop,
+                    tstep,
+                    method,
+                    rtol,
+                    atol,
+                    prepared.x0,
+                    force,
+                    progress.fraction_callback(bar),
+                    warn=lambda w: click.echo(str(w), err=True),
+                    step=step,
+                )
         horizon = run.horizon
         unverified = run.status == "unverified"  # numbers written, but not vouched for: exit 3
         if not run.ok and not unverified:
@@ -1342,21 +1381,38 @@ def _simulate_descriptor(
     fmt: str,
     out: str | None,
     quiet: bool,
+    split: tuple[int, str, bool] | None = None,
 ) -> int:
-    """``simulate`` on the sparse descriptor form (see :mod:`netlistdyn.large`)."""
+    """``simulate`` on the sparse descriptor form (see :mod:`netlistdyn.large`), superposed with ``split``."""
     from . import progress
     from .display import eng
     from .large import simulate_large
     from .report import simulation_csv, simulation_dict, simulation_summary, to_json
 
     _print_warnings(parsed.warnings)
-    with progress.bar("simulate", 100, quiet, unit="%") as bar:
-        result = simulate_large(
-            parsed, list(outputs) or None, tstop, tstep, ics, progress.fraction_callback(bar), rtol
-        )
-    if not result.ok:
+    if split is not None:
+        from .superpose import descriptor_task
+
+        task, horizon = descriptor_task(parsed, list(outputs) or None, tstop, tstep, ics, rtol)
+        result = _run_superposed(task, horizon, split, quiet)
+    else:
+        with progress.bar("simulate", 100, quiet, unit="%") as bar:
+            result = simulate_large(
+                parsed,
+                list(outputs) or None,
+                tstop,
+                tstep,
+                ics,
+                progress.fraction_callback(bar),
+                rtol,
+                warn=lambda w: click.echo(str(w), err=True),
+            )
+    unverified = result.status == "unverified"
+    if not result.ok and not unverified:
         click.echo(f"netlistdyn: {result.method} {result.status}: {result.message}", err=True)
         return EXIT_MISMATCH
+    if unverified:
+        click.echo(f"netlistdyn: warning: {result.method} result unverified: {result.message}", err=True)
     if csv_path:
         write_atomic(csv_path, simulation_csv(result))
     if plot:
@@ -1373,7 +1429,44 @@ def _simulate_descriptor(
             f"method {result.method} ({result.setting}) in {result.seconds:.3f} s\n"
         )
         emit(summary + simulation_summary(result), out)
-    return 0
+    return EXIT_MISMATCH if unverified else 0
+
+
+def _superpose_options(
+    superpose: bool,
+    jobs: int | None,
+    oversubscribe: bool,
+    scheduler: str | None,
+    coordinates: str | None,
+    animate: str | None,
+) -> tuple[int, str, bool] | None:
+    """``simulate``'s superposition options as (jobs, scheduler, oversubscribe), None without --superpose."""
+    if not superpose:
+        options = (("--jobs", jobs), ("--scheduler", scheduler), ("--oversubscribe", oversubscribe))
+        given = [f for f, on in options if on]
+        if given:
+            raise UsageError(f"{given[0]} applies to --superpose only")
+        return None
+    refused = [f for f, on in (("--coordinates", coordinates), ("--animate", animate)) if on]
+    if refused:
+        raise UsageError(f"{refused[0]} is not available with --superpose")
+    scheduler = scheduler or "processes"
+    check_scheduler(scheduler)
+    return (jobs or 2), scheduler, oversubscribe
+
+
+def _run_superposed(task: Any, horizon: Any, split: tuple[int, str, bool], quiet: bool) -> Any:
+    """Plan, run and sum the jobs of ``simulate --superpose`` (see :mod:`netlistdyn.superpose`)."""
+    from . import progress
+    from .superpose import plan, superpose
+
+    count, scheduler, oversubscribe = split
+    jobs = plan(task.netlist, count, task.tstep, task.tstop, bool(task.ics) or task.x0 is not None)
+    workers = worker_count(count, len(jobs), oversubscribe, scheduler)
+    with progress.bar("superpose", len(jobs), quiet, unit="job") as bar:
+        result, warnings = superpose(task, jobs, horizon, workers, scheduler, bar.update)
+    _print_warnings(warnings)
+    return result
 
 
 def _analyze_descriptor(

@@ -268,22 +268,41 @@ def _results(
     scheduler: str,
     eig: str,
 ) -> Iterator[dict[str, Any]]:
+    calls = [(source, case, outputs, eig) for case in cases]
+    yield from map_tasks(_one_case, formulation, calls, jobs, scheduler)
+
+
+def map_tasks(
+    function: Callable[..., Any],
+    shared: Any,
+    calls: Sequence[tuple[Any, ...]],
+    jobs: int,
+    scheduler: str = "processes",
+) -> Iterator[Any]:
+    """``function(shared, *call)`` for every call, yielded in order, wherever ``scheduler`` says.
+
+    Parameters
+    ----------
+    function : callable
+        A module-level function (it is pickled to the workers).
+    shared : object
+        The first argument of every call, sent once per worker on Dask (broadcast).
+    calls : sequence of tuple
+        The other arguments, one tuple per task.
+    jobs : int
+        Worker processes of the local pool or the local Dask cluster (1: run here).
+    scheduler : str
+        ``"processes"`` (this machine), ``"dask"`` (a local Dask cluster of ``jobs``
+        workers) or a Dask scheduler address such as ``tcp://10.0.0.5:8786``.
+    """
     if scheduler in LOCAL_SCHEDULERS:
-        if jobs <= 1 or len(cases) == 1:
-            yield from (_one_case(formulation, source, case, outputs, eig) for case in cases)
+        if jobs <= 1 or len(calls) <= 1:
+            yield from (function(shared, *call) for call in calls)
             return
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            yield from pool.map(
-                _one_case,
-                itertools.repeat(formulation),
-                itertools.repeat(source),
-                cases,
-                itertools.repeat(outputs),
-                itertools.repeat(eig),
-                chunksize=1,
-            )
+            yield from pool.map(function, itertools.repeat(shared), *zip(*calls, strict=True), chunksize=1)
         return
-    yield from _run_on_dask(scheduler, jobs, formulation, source, cases, outputs, eig)
+    yield from _run_on_dask(scheduler, jobs, function, shared, calls)
 
 
 def run_sweep(
@@ -334,13 +353,11 @@ def run_sweep(
 def _run_on_dask(
     scheduler: str,
     jobs: int,
-    formulation: Formulation | None,
-    source: SweepSource,
-    cases: list[dict[str, float]],
-    outputs: list[str] | None,
-    eig: str,
-) -> Iterator[dict[str, Any]]:
-    """The same cases as Dask tasks (the netlist's text travels with them)."""
+    function: Callable[..., Any],
+    shared: Any,
+    calls: Sequence[tuple[Any, ...]],
+) -> Iterator[Any]:
+    """The same tasks on Dask (each call's arguments travel with it, ``shared`` is broadcast)."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -355,26 +372,22 @@ def _run_on_dask(
             ) as cluster,
             Client(cluster) as client,
         ):
-            yield from _dask_map(client, formulation, source, cases, outputs, eig)
+            yield from _dask_map(client, function, shared, calls)
         return
     try:
         client = Client(scheduler, timeout="10s")
     except OSError as exc:
         raise UsageError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({exc})") from None
     with client:
-        yield from _dask_map(client, formulation, source, cases, outputs, eig)
+        yield from _dask_map(client, function, shared, calls)
 
 
 def _dask_map(
-    client: Any,
-    formulation: Formulation | None,
-    source: SweepSource,
-    cases: list[dict[str, float]],
-    outputs: list[str] | None,
-    eig: str,
-) -> Iterator[dict[str, Any]]:
-    shared = client.scatter(formulation, broadcast=True) if formulation is not None else None
-    n = len(cases)
-    futures = client.map(_one_case, [shared] * n, [source] * n, cases, [outputs] * n, [eig] * n, pure=False)
+    client: Any, function: Callable[..., Any], shared: Any, calls: Sequence[tuple[Any, ...]]
+) -> Iterator[Any]:
+    first = client.scatter(shared, broadcast=True) if shared is not None else None
+    n = len(calls)
+    columns = [list(column) for column in zip(*calls, strict=True)] if n else []
+    futures = client.map(function, [first] * n, *columns, pure=False)
     for future in futures:
         yield future.result()
