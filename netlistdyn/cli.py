@@ -1171,18 +1171,16 @@ def sweep(
     def body() -> int:
         from . import progress
         from .report import sweep_record_json, sweep_text, to_json
-        from .sweep import expand_cases, iter_sweep
+        from .sweep import SweepSource, expand_cases, iter_sweep
 
         check_outputs(plot=plot, out=out)
-        if netlist == DASH:
-            raise UsageError("sweep re-reads the netlist for every case: give a file, not '-'")
         check_scheduler(scheduler)
+        # "-": standard input, read once; every case re-reads its text (as a file's).
+        source = SweepSource(STDIN_NAME, stdin_text()) if netlist == DASH else SweepSource.read(netlist)
         if params:
             cases = expand_cases(params, max_cases)
         else:  # the netlist's own .step param lines (LTspice)
-            from .parser import parse_file
-
-            cases = parse_file(netlist).step_cases()
+            cases = parse_netlist(netlist).step_cases()
             if not cases:
                 raise UsageError("sweep needs --param NAME=VALUES (or .step param lines in the netlist)")
             if len(cases) > max_cases:
@@ -1193,7 +1191,7 @@ def sweep(
         workers = worker_count(jobs, len(cases), oversubscribe, scheduler)
         result = []
         with progress.bar("sweep", len(cases), quiet, unit="case") as bar, _stream(fmt, out) as write:
-            for record in iter_sweep(netlist, cases, list(outputs) or None, workers, scheduler, eig):
+            for record in iter_sweep(source, cases, list(outputs) or None, workers, scheduler, eig):
                 result.append(record)
                 if write is not None:
                     write(sweep_record_json(record))

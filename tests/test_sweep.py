@@ -91,3 +91,26 @@ def test_sweep_plot_is_written(tmp_path) -> None:
     assert result.exit_code == 0, result.output
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert result.output.count("asymptotically stable") == 5
+
+
+def test_sweep_reads_standard_input_as_analyze_does() -> None:
+    """``sweep -`` takes the netlist from stdin: the same cases as from the file, eigenvalue for
+    eigenvalue (the same compile on the same text; 1e-12 relative leaves room for rounding)."""
+    import json
+
+    from click.testing import CliRunner
+
+    from netlistdyn.cli import main
+
+    path = NETLISTS / "circuit1.cir"
+    args = ["--param", "R1=1m,10", "--param", "R2=1m,10", "--format", "json", "-q"]
+    runner = CliRunner()
+    from_file = runner.invoke(main, ["sweep", str(path), *args])
+    from_stdin = runner.invoke(main, ["sweep", "-", *args], input=path.read_text())
+    assert from_file.exit_code == 0 and from_stdin.exit_code == 0, from_stdin.output
+    cases_file = json.loads(from_file.stdout)["cases"]
+    cases_stdin = json.loads(from_stdin.stdout)["cases"]
+    assert len(cases_stdin) == len(cases_file) == 2
+    for a, b in zip(cases_file, cases_stdin, strict=True):
+        assert a["stability"] == b["stability"]
+        np.testing.assert_allclose(b["eigenvalues"], a["eigenvalues"], rtol=1e-12, atol=0)
