@@ -287,7 +287,8 @@ option(
     "--scheduler",
 )
 option("sweep_unknown_param", ["sweep", F, "--param", "Rz=1,2"], "rz", "--param")
-option("sweep_stdin", ["sweep", "-", "--param", "R1=1,2"], "give a file", "sweep")
+# "-" reads standard input (empty here): the same answer as an empty file.
+option("sweep_stdin_empty", ["sweep", "-", "--param", "R1=1,2"], "defines no .param r1", "--param")
 option("save_unknown_suffix", ["analyze", F, "--save", "model.xyz"], "unknown format", "--save")
 option("save_no_folder", ["analyze", F, "--save", "nodir/model.npz"], "does not exist", "--save")
 option("out_no_folder", ["analyze", F, "--save", "model.npz", "-o", "nodir/out.txt"], "does not exist", "-o")
