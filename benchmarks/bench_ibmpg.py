@@ -1,7 +1,10 @@
 """ibmpg1t end to end: parse, assemble, DC operating point, 10 ns at 10 ps; against the benchmark's
 published waveforms, our own tightest run, and (optionally) batch ngspice.
 
-    python benchmarks/bench_ibmpg.py [--rtol 1e-6,1e-10,1e-13] [--ngspice] [--ngspice-log FILE]
+    python benchmarks/bench_ibmpg.py [--rtol 1e-6,pade:1e-10,1e-12] [--ngspice] [--ngspice-log FILE]
+
+Each ``--rtol`` entry is ``[method:]rtol`` (method ``cf``, the default, or ``pade``: see
+:func:`netlistdyn.transient.run_transient`); the last entry is the reference.
 
 The netlist and reference are read from ``../shared/benchmarks/ibmpg/`` (bz2). Every run of ours
 happens in a child process (so peak memory is per run); CPU seconds are the child's user+system
@@ -70,7 +73,7 @@ from netlistdyn.descriptor import assemble
 from netlistdyn.parser import parse_file
 from netlistdyn.simulate import source_waveform
 from netlistdyn.transient import run_transient
-path, rtol, outs = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(",")
+path, rtol, outs, method = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[5]
 marks = [(time.process_time(), time.perf_counter())]
 netlist = parse_file(path)
 marks.append((time.process_time(), time.perf_counter()))
@@ -79,7 +82,7 @@ marks.append((time.process_time(), time.perf_counter()))
 tran = netlist.tran
 times = np.linspace(0.0, tran.tstop, round(tran.tstop / tran.tstep) + 1)
 waves = [source_waveform(e).resolved(tran.tstep, tran.tstop) for e in netlist.sources]
-run = run_transient(system, waves, times, rtol=rtol)
+run = run_transient(system, waves, times, rtol=rtol, method=method)
 marks.append((time.process_time(), time.perf_counter()))
 np.save(sys.argv[4], run.outputs)
 usage = resource.getrusage(resource.RUSAGE_SELF)
@@ -92,14 +95,14 @@ print(json.dumps({
 """
 
 
-def run_ours(netlist: Path, rtol: float, outputs: list[str], work: Path) -> dict:
+def run_ours(netlist: Path, rtol: float, outputs: list[str], work: Path, method: str = "cf") -> dict:
     """One run of ours in a child process; returns its report with outputs and times."""
-    target = work / f"ours_{rtol:g}.npy"
+    target = work / f"ours_{method}_{rtol:g}.npy"
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(netlist), repr(rtol), ",".join(outputs), str(target)],
+        [sys.executable, "-c", CHILD, str(netlist), repr(rtol), ",".join(outputs), str(target), method],
         capture_output=True,
         text=True,
         env=env,
@@ -145,9 +148,12 @@ def main() -> int:
     ref = np.column_stack([reference[n][:, 1] for n in names])
     grid = reference[names[0]][:, 0]
     swing = np.ptp(ref, axis=0)
-    rtols = [float(v) for v in args.rtol.split(",")]
-    runs = {rtol: run_ours(netlist, rtol, outputs, work) for rtol in rtols}
-    best = runs[rtols[-1]]["outputs"]
+    specs = [
+        (v.split(":")[0], float(v.split(":")[1])) if ":" in v else ("cf", float(v))
+        for v in args.rtol.split(",")
+    ]
+    runs = {spec: run_ours(netlist, spec[1], outputs, work, spec[0]) for spec in specs}
+    best = runs[specs[-1]]["outputs"]
 
     finite = np.isfinite(best).all(axis=1)  # a failed reference run counts up to where it stopped
     digit = 10.0 ** (np.floor(np.log10(np.abs(ref))) - 6)  # one unit of the 7th printed digit
@@ -164,11 +170,11 @@ def main() -> int:
         )
 
     rows = []
-    for rtol, run in runs.items():
+    for (method, rtol), run in runs.items():
         stats = run["stats"]
         rows.append(
             {
-                "run": f"netlistdyn descriptor, rtol {rtol:g}",
+                "run": f"netlistdyn descriptor {method}, rtol {rtol:g}",
                 "cpu": run["cpu"],
                 "wall": run["wall"],
                 "memory_mb": run["maxrss_mb"],
@@ -202,12 +208,14 @@ def main() -> int:
         )
     print(f"published waveforms: {len(names)} nodes, swing {swing.min():.3g}..{swing.max():.3g} V")
     print(f"DC operating point vs published t = 0 (7 digits): {np.abs(best[0] - ref[0]).max():.2g} V")
-    status = runs[rtols[-1]]["status"]
-    print(f"our rtol {rtols[-1]:g} run: {status}, compared up to t = {grid[finite].max():g} s")
+    status = runs[specs[-1]]["status"]
+    print(
+        f"our {specs[-1][0]} rtol {specs[-1][1]:g} run: {status}, compared up to t = {grid[finite].max():g} s"
+    )
     print()
     print(
-        "| run | CPU [s] | wall [s] | peak memory [MB] | max err vs published [V] | / swing | vs our rtol "
-        f"{rtols[-1]:g}, / swing | within 1 printed digit | notes |"
+        "| run | CPU [s] | wall [s] | peak memory [MB] | max err vs published [V] | / swing | vs our "
+        f"{specs[-1][0]} rtol {specs[-1][1]:g}, / swing | within 1 printed digit | notes |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
     for row in rows:

@@ -14,11 +14,18 @@ about 9.28903⁻ⁿ, the Halphen constant of Cody, Meinardus and Varga).
    gives the poles: the n roots ``q`` of ``Σ v_k q^(K−1−k)`` outside the unit disk,
    mapped back by ``z = 9 (q − 1)²/(q + 1)²``. Computed in mpmath (40 digits;
    the eigenvector by inverse iteration from numpy's estimate).
-2. Residues and ``r∞`` for those poles: a linear Remez exchange in mpmath for
-   the best approximation with the constraint ``r(0) = 1`` exactly. An error at
-   0 would multiply the slow (near-DC) part of the state at every step, so it
-   would grow with the number of steps; pinned, a slowly decaying mode keeps a
-   relative error of at most ``sup |(r(x) − e^x)/x|`` over a whole run.
+2. Residues for those poles: a linear Remez exchange in mpmath for the best
+   approximation with the constraints ``r(0) = 1`` and ``r(−∞) = r∞ = 0``. An
+   error at 0 would multiply the slow (near-DC) part of the state at every
+   step, so it would grow with the number of steps; pinned, a slowly decaying
+   mode keeps a relative error of at most ``sup |(r(x) − e^x)/x|`` over a
+   whole run. With ``r∞ = 0`` the approximant is strictly proper, so the
+   algebraic unknowns of a descriptor system (``E`` singular) come out
+   consistent with the input after every step; a nonzero ``r∞`` would carry
+   ``r∞`` times their previous value (ibmpg1t: 2e-12 of 1.8 V between degrees
+   12 and 14, whatever the step, so a check at rtol 1e-12 could never pass).
+   The two constraints cost little: 2.31e-12 against 2.20e-12 with ``r(0) = 1``
+   alone at degree 12.
 
 The maximum error on the axis (dense sampling in t) and the equioscillation are
 printed with the table; ``tests/test_cf_table.py`` checks them independently.
@@ -108,13 +115,19 @@ def _x(t: mp.mpf) -> mp.mpf:
 
 
 class _Basis:
-    """r(x) = r∞ + Σ p_k φ_k(x) with r∞ fixed by r(0) = 1.
+    """r(x) = r∞ + Σ p_k φ_k(x), φ the real and imaginary parts of 1/(x − z_j), constrained.
 
-    The error is then (1 − e^x) + Σ p_k (φ_k(x) − φ_k(0)).
+    ``proper``: r∞ = 0 and r(0) = 1 (one φ, ψ = φ_m/φ_m(0), carries the constraint), so
+    ``e = (ψ − e^x) + Σ_{k≠m} p_k (φ_k − φ_k(0) ψ)``; otherwise r(0) = 1 only, so
+    ``e = (1 − e^x) + Σ p_k (φ_k − φ_k(0))``.
     """
 
-    def __init__(self, poles: list[mp.mpc]) -> None:
+    def __init__(self, poles: list[mp.mpc], proper: bool) -> None:
         self.poles = poles
+        self.proper = proper
+        self.phi0 = self.phi(mp.mpf(0))
+        self.m = max(range(len(self.phi0)), key=lambda k: abs(self.phi0[k])) if proper else -1
+        self.count = len(self.phi0) - (1 if proper else 0)
 
     def phi(self, x: mp.mpf) -> list[mp.mpf]:
         out = []
@@ -123,11 +136,32 @@ class _Basis:
             out += [2 * mp.re(w), -2 * mp.im(w)]
         return out
 
-    def error(self, p: list[mp.mpf], t: mp.mpf) -> mp.mpf:
-        x = -mp.inf if t <= -1 else _x(t)
+    def parts(self, x: mp.mpf) -> tuple[mp.mpf, list[mp.mpf]]:
+        """(f0, g) with e(x) = f0(x) + Σ p_k g_k(x)."""
         ex = mp.mpf(0) if mp.isinf(x) else mp.exp(x)
-        g = [a - b for a, b in zip(self.phi(x), self.phi(mp.mpf(0)), strict=True)]
-        return 1 - ex + mp.fsum(a * b for a, b in zip(p, g, strict=True))
+        phi = self.phi(x)
+        if not self.proper:
+            return 1 - ex, [a - b for a, b in zip(phi, self.phi0, strict=True)]
+        psi = phi[self.m] / self.phi0[self.m]
+        g = [phi[k] - self.phi0[k] * psi for k in range(len(phi)) if k != self.m]
+        return psi - ex, g
+
+    def error(self, p: list[mp.mpf], t: mp.mpf) -> mp.mpf:
+        f0, g = self.parts(-mp.inf if t <= -1 else _x(t))
+        return f0 + mp.fsum(a * b for a, b in zip(p, g, strict=True))
+
+    def coefficients(self, p: list[mp.mpf]) -> tuple[mp.mpf, list[mp.mpc]]:
+        """(r∞, residues c_j) from the free parameters."""
+        full = list(p)
+        if self.proper:
+            rest = mp.fsum(
+                a * self.phi0[k]
+                for a, k in zip(p, [k for k in range(len(self.phi0)) if k != self.m], strict=True)
+            )
+            full.insert(self.m, (1 - rest) / self.phi0[self.m])
+        coefs = [mp.mpc(full[2 * j], full[2 * j + 1]) for j in range(len(self.poles))]
+        r_inf = mp.mpf(0) if self.proper else 1 - mp.fsum(a * b for a, b in zip(full, self.phi0, strict=True))
+        return r_inf, coefs
 
 
 def _extrema(basis: _Basis, p: list[mp.mpf], samples: int = 3000) -> list[tuple[mp.mpf, mp.mpf]]:
@@ -175,52 +209,40 @@ def _alternating(points: list[tuple[mp.mpf, mp.mpf]], count: int) -> list[tuple[
     return merged
 
 
-def _lawson_start(poles: list[mp.mpc], samples: int = 8000, iterations: int = 300) -> list[float]:
+def _lawson_start(basis: _Basis, samples: int = 4000, iterations: int = 300) -> list[mp.mpf]:
     """A starting reference for the Remez exchange: extrema of a Lawson (iteratively reweighted
     least squares) fit in double precision."""
-    z = np.array([complex(p) for p in poles])
     t = -np.cos(np.linspace(0.0, np.pi, samples + 1)[:-1])
-    with np.errstate(divide="ignore"):
-        x = SCALE * (t - 1) / (t + 1)
-    x[0] = -np.inf
-
-    def phi(xs: np.ndarray) -> np.ndarray:
-        cols = []
-        for pole in z:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                w = np.where(np.isinf(xs), 0.0, 1.0 / (xs - pole))
-            cols += [2 * w.real, -2 * w.imag]
-        return np.array(cols).T
-
-    g = phi(x) - phi(np.zeros(1))
-    f = np.exp(x) - 1
-    w = np.full(x.size, 1.0 / x.size)
+    rows = [basis.parts(-mp.inf if v <= -1 else _x(mp.mpf(float(v)))) for v in t]
+    f0 = np.array([float(f) for f, _ in rows])
+    g = np.array([[float(v) for v in gk] for _, gk in rows])
+    w = np.full(t.size, 1.0 / t.size)
     for _ in range(iterations):
         sw = np.sqrt(w)
-        p = np.linalg.lstsq(g * sw[:, None], f * sw, rcond=None)[0]
-        e = g @ p - f
+        p = np.linalg.lstsq(g * sw[:, None], -f0 * sw, rcond=None)[0]
+        e = f0 + g @ p
         w = w * np.abs(e)
         w /= w.sum()
-    ext = [0] + [k for k in range(1, x.size - 1) if abs(e[k]) >= abs(e[k - 1]) and abs(e[k]) >= abs(e[k + 1])]
-    picked = _alternating([(mp.mpf(float(t[k])), mp.mpf(float(-e[k]))) for k in ext], len(poles) * 2 + 1)
-    return [float(t) for t, _ in picked]
+    ext = [0] + [k for k in range(1, t.size - 1) if abs(e[k]) >= abs(e[k - 1]) and abs(e[k]) >= abs(e[k + 1])]
+    picked = _alternating([(mp.mpf(float(t[k])), mp.mpf(float(e[k]))) for k in ext], basis.count + 1)
+    return [tk for tk, _ in picked]
 
 
-def residues(poles: list[mp.mpc], iterations: int = 20) -> tuple[mp.mpf, list[mp.mpc], mp.mpf]:
-    """(r∞, residues, max error) of the best approximation with these poles and r(0) = 1."""
-    basis = _Basis(poles)
-    n = 2 * len(poles)
-    ref = [mp.mpf(t) for t in _lawson_start(poles)]
-    g0 = basis.phi(mp.mpf(0))
+def residues(
+    poles: list[mp.mpc], proper: bool = True, iterations: int = 20
+) -> tuple[mp.mpf, list[mp.mpc], mp.mpf]:
+    """(r∞, residues, max error) of the best approximation with these poles, r(0) = 1 (and r∞ = 0)."""
+    basis = _Basis(poles, proper)
+    n = basis.count
+    ref = _lawson_start(basis)
     p: list[mp.mpf] = [mp.mpf(0)] * n
     level = mp.mpf(0)
     for _ in range(iterations):
         rows, rhs = [], []
         for i, t in enumerate(ref):
-            x = -mp.inf if t <= -1 else _x(t)
-            g = [a - b for a, b in zip(basis.phi(x), g0, strict=True)]
+            f0, g = basis.parts(-mp.inf if t <= -1 else _x(t))
             rows.append([*g, -((-1) ** i)])
-            rhs.append((0 if mp.isinf(x) else mp.exp(x)) - 1)
+            rhs.append(-f0)
         sol = mp.lu_solve(mp.matrix(rows), mp.matrix(rhs))
         p = [sol[k] for k in range(n)]
         level = abs(sol[n])
@@ -233,8 +255,7 @@ def residues(poles: list[mp.mpc], iterations: int = 20) -> tuple[mp.mpf, list[mp
         print(f"#   Remez: level {mp.nstr(level, 6)}, max {mp.nstr(worst, 6)}", file=sys.stderr)
         if worst - level < mp.mpf(10) ** -4 * level:
             break
-    coefs = [mp.mpc(p[2 * j], p[2 * j + 1]) for j in range(len(poles))]
-    r_inf = 1 - mp.fsum(2 * mp.re(c / (0 - z)) for c, z in zip(coefs, poles, strict=True))
+    r_inf, coefs = basis.coefficients(p)
     return r_inf, coefs, worst
 
 
@@ -244,7 +265,7 @@ def main() -> int:
     coefs = chebyshev_coefficients(TERMS)
     print(f"# last Chebyshev coefficient {mp.nstr(abs(coefs[-1]), 3)}", file=sys.stderr)
     lines = [
-        '"""Partial-fraction rational approximations of e^x on (−∞, 0] (CF poles, r(0) = 1).',
+        '"""Partial-fraction rational approximations of e^x on (−∞, 0] (CF poles, r(0) = 1, r(−∞) = 0).',
         "",
         "Generated by ``python -m netlistdyn._cf_generate`` (mpmath, 40 digits); do not edit.",
         "``CF[n] = (r_inf, ((z_j, c_j), ...), max_error)`` with",

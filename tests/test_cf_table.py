@@ -38,8 +38,9 @@ def _r(degree: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("degree", sorted(CF))
 def test_error_is_near_best_on_the_whole_negative_axis(degree: int) -> None:
     """max |r − e^x| over the axis is the stored bound (to 1 % plus rounding), that bound lies
-    between 0.6 and 1.0 times HALPHEN**−n (the best possible is ≈ 0.66 of it, and the r(0) = 1
-    constraint costs a little), and x → −∞ gives r∞ with |r∞| within the bound."""
+    between 0.6 and 1.0 times HALPHEN**−n (the best possible is ≈ 0.66 of it, and the
+    constraints r(0) = 1, r(−∞) = 0 cost a little), and r∞ = 0: strictly proper, so the
+    algebraic unknowns of a descriptor system come out consistent after a step."""
     r_inf, _, bound = CF[degree]
     x = _axis()
     value, largest = _r(degree, x)
@@ -47,14 +48,14 @@ def test_error_is_near_best_on_the_whole_negative_axis(degree: int) -> None:
     rounding = ROUNDING_ULPS * np.finfo(float).eps * largest
     assert np.all(np.abs(value - exact) <= 1.01 * bound + rounding)
     assert 0.6 <= bound * HALPHEN**degree <= 1.0
-    assert abs(r_inf) <= 1.01 * bound
+    assert abs(r_inf) < 1e-300
 
 
 @pytest.mark.parametrize("degree", sorted(CF))
 def test_error_equioscillates(degree: int) -> None:
-    """The error alternates in sign at ≥ n + 1 extrema within 2 % of its maximum, x = −∞
-    included (the characterisation of the best approximation for the n free parameters once
-    r(0) = 1)."""
+    """The error alternates in sign at ≥ n extrema within 2 % of its maximum (the
+    characterisation of the best approximation for the n − 1 free parameters left once
+    r(0) = 1 and r(−∞) = 0)."""
     _, _, bound = CF[degree]
     x = _axis()
     with mp.workdps(30):
@@ -68,10 +69,15 @@ def test_error_equioscillates(degree: int) -> None:
     inner = (
         np.flatnonzero((np.abs(err[1:-1]) >= np.abs(err[:-2])) & (np.abs(err[1:-1]) >= np.abs(err[2:]))) + 1
     )
-    peaks = np.concatenate([[r_inf], err[inner]])  # the error at x = −∞ is r∞
-    peaks = peaks[np.abs(peaks) >= 0.98 * bound]
+    # The coefficients are stored as doubles: rounding them moves r by up to `moved` (at degree
+    # 14, residues ~1e2, about a tenth of the bound), so a peak counts within 2 % plus that.
+    moved = np.zeros(x.size)
+    for z, c in pairs:
+        moved += 2 * np.finfo(float).eps * (abs(c) / np.abs(x - z) + abs(c) * abs(z) / np.abs(x - z) ** 2)
+    keep = np.abs(err[inner]) >= 0.98 * bound - moved[inner]
+    peaks = err[inner][keep]
     alternations = 1 + int(np.count_nonzero(np.sign(peaks[1:]) != np.sign(peaks[:-1])))
-    assert alternations >= degree + 1
+    assert alternations >= degree
 
 
 @pytest.mark.parametrize("degree", sorted(CF))
