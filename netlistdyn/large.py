@@ -138,6 +138,9 @@ def simulate_large(
         scheme = f"CF rational of degree {CF_DEGREE} on (-inf, 0], checked against degree {CF_CHECK_DEGREE}"
     else:
         scheme = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
+    if "pade_from" in run.stats:
+        pade = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
+        scheme += f" ({pade} from t = {run.stats['pade_from']:g} s, where CF's check failed)"
     stats = {**run.stats, "cpu_seconds": cpu, "unknowns": system.size}
     return Simulation(
         title=netlist.title,
