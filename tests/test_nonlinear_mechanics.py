@@ -174,3 +174,40 @@ def test_simulate_cli_releases_the_pendulum_from_its_ic() -> None:
     angle = json.loads(result.stdout)["values"]["x(bob)"]
     assert abs(angle[0] - 2.0) <= 1e-12
     assert abs(angle[-1] + 2.0) <= 1e-6  # rtol 1e-9 over half a period
+
+
+# ------------------------------------------------ exact rod geometry against the linear ROD models
+
+NETLISTS = Path(__file__).resolve().parent.parent / "netlists"
+#: Agreement of the geometry netlists' linearisation with the ROD models (issue #14): both are
+#: exact linear algebra on the same stiffnesses, so only rounding separates them.
+ROD_RTOL = 1e-9
+
+
+@pytest.mark.parametrize(
+    ("rod", "geometry", "coordinates", "params"),
+    [
+        ("blocks_pendulum", "blocks_pendulum_geometry", "x(b1) x(b2) x(bob) v(b1) v(b2) v(bob)", {}),
+        ("blocks_pendulum", "blocks_pendulum_geometry", "x(b1) x(b2) x(bob) v(b1) v(b2) v(bob)", {"inv": 1}),
+        ("blocks_pendulum", "blocks_pendulum_geometry", "x(b1) x(b2) x(bob) v(b1) v(b2) v(bob)", {"l": 100}),
+        ("double_pendulum", "double_pendulum_geometry", "x(b1) x(b2) v(b1) v(b2)", {}),
+        ("double_pendulum", "double_pendulum_geometry", "x(b1) x(b2) v(b1) v(b2)", {"inv": 1}),
+    ],
+)
+def test_geometry_netlists_linearise_to_the_rod_models(
+    rod: str, geometry: str, coordinates: str, params: dict[str, float]
+) -> None:
+    """The rods' exact geometry, linearised at the hanging (or upright) rest, is today's ROD model.
+
+    Both are presented in the same coordinates (positions and velocities), so A and B are
+    compared entry by entry, relative to each matrix's largest entry.
+    """
+    import netlistdyn
+
+    names = coordinates.split()
+    linear = netlistdyn.compile(NETLISTS / f"{rod}.cir", coordinates=names, params=params)
+    exact = netlistdyn.compile(NETLISTS / f"{geometry}.cir", coordinates=names, params=params)
+    assert exact.states == linear.states == tuple(names)
+    assert exact.inputs == linear.inputs
+    for ours, ref in ((exact.A, linear.A), (exact.B, linear.B)):
+        assert np.abs(ours - ref).max() <= ROD_RTOL * np.abs(ref).max()
