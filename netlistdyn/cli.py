@@ -401,8 +401,9 @@ out_option = click.option(
     "--at",
     "at",
     multiple=True,
-    metavar="SOURCE=VALUE",
-    help="Nonlinear netlists: linearise at the operating point with this source at VALUE. Repeatable.",
+    metavar="NAME=VALUE",
+    help="Nonlinear netlists: linearise with this source at VALUE, or this state held at VALUE "
+    "(x(bob)=3.14159: the others settle; a point that is not an equilibrium is said). Repeatable.",
 )
 @quiet_option
 @out_option
@@ -560,8 +561,9 @@ def analyze(
     "--at",
     "at",
     multiple=True,
-    metavar="SOURCE=VALUE",
-    help="Solve with this independent source at VALUE instead of its DC value. Repeatable.",
+    metavar="NAME=VALUE",
+    help="Solve with this independent source at VALUE instead of its DC value, or this state held "
+    "at VALUE (the drift f(x0, u0) is printed when the point is not an equilibrium). Repeatable.",
 )
 @format_option
 @out_option

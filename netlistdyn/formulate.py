@@ -38,7 +38,7 @@ import scipy.sparse.linalg as spla
 
 from .errors import NetlistError, SingularCircuitError, SourceLocation, TopologyError, UsageError
 from .graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
-from .mechanics import state_prefix
+from .mechanics import DISPLACEMENT_KEYWORD, state_prefix
 from .model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceModel
 from .netlist import GROUND, Diagnostic, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
@@ -1205,7 +1205,9 @@ def is_passive(netlist: Netlist) -> bool:
 
 
 def state_name(element: Element) -> str:
-    """Name of the state an element carries: ``q(C1)``, ``i(L1)``, ``p(m1)`` or ``f(k1)``."""
+    """Name of the state an element carries: ``q(C1)``, ``i(L1)``, ``p(m1)``, ``f(k1)`` or ``x(n)``."""
+    if element.keyword == DISPLACEMENT_KEYWORD:  # a linearised mechanism's integrator of v(n)
+        return element.name
     return f"{state_prefix(element)}({element.name})"
 
 

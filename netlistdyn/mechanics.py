@@ -218,6 +218,11 @@ def resolve_rods(elements: Sequence[Element]) -> list[Element]:
     return out
 
 
+#: Keyword of the 1 F integrator named ``x(n)`` whose voltage is node n's displacement (or angle)
+#: in a linearised nonlinear mechanism; its state is named ``x(n)``.
+DISPLACEMENT_KEYWORD = "DISPLACEMENT"
+
+
 def state_prefix(element: Element) -> str:
     """``p`` (momentum) for masses, ``f`` (force) for springs and rods, else SPICE's q/i."""
     if element.keyword in ("MASS", "INERTIA"):

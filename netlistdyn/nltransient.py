@@ -21,7 +21,6 @@ independent.
 from __future__ import annotations
 
 import itertools
-import re
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -362,8 +361,8 @@ def initial_state(
     """The nonlinear circuit's initial state from ``--ic`` values given on the linearised model's states.
 
     ``--ic`` values are absolute (as for a linear netlist, whose zero state is all charges and
-    currents zero). A displacement is the linearised model's ``q(x(n))`` (or an added ``x(n)``);
-    charges, currents and momenta keep their names. A diode's junction charge cannot be set.
+    currents zero). A displacement is ``x(n)``, as in the linearised model; charges, currents and
+    momenta keep their names. A diode's junction charge cannot be set.
 
     Raises
     ------
@@ -377,13 +376,11 @@ def initial_state(
     diodes = {f"q({d.element.name})" for d in circuit.charged_diodes}
     out = np.zeros(len(targets))
     for name, value in zip(names, np.asarray(x0, dtype=float), strict=True):
-        match = re.fullmatch(r"q\((x\(.+\))\)", name)
-        target = match.group(1) if match else name
         if value == 0:
             continue
-        if target in diodes or target not in targets:
+        if name in diodes or name not in targets:
             raise UsageError(f"--ic {name}: not a state the nonlinear transient can start from")
-        out[targets[target]] = value
+        out[targets[name]] = value
     return out
 
 

@@ -51,7 +51,7 @@ from .devices import (
 )
 from .errors import NetlistError, SourceLocation
 from .expressions import ExpressionError
-from .mechanics import state_prefix
+from .mechanics import DISPLACEMENT_KEYWORD, state_prefix
 from .netlist import GROUND, STORAGE_KINDS, Diagnostic, Element, Kind, Netlist
 
 #: Relative Newton step at which the solution is converged (then one more step polishes it).
@@ -105,6 +105,9 @@ class OperatingPoint:
     z: NDArray[np.float64] = field(repr=False, compare=False)
     displacements: dict[str, float] = field(default_factory=dict)
     """Displacement or angle x(n) (m or rad) of each node an expression reads it at."""
+    drift: dict[str, float] = field(default_factory=dict)
+    """With states held by ``--at``: the derivative x' = f(x0, u0) of each state that is not zero
+    (empty at an equilibrium)."""
 
 
 @dataclass(frozen=True)
@@ -969,18 +972,74 @@ def operating_point(netlist: Netlist, at: Mapping[str, float] | None = None) -> 
     ----------
     netlist : Netlist
     at : Mapping, optional
-        Source name → value (V or A) replacing its DC value.
+        Source name → value (V or A) replacing its DC value, or state name → value: a state
+        held there (``x(bob)`` in rad or m, ``q(C1)`` in C, ``i(L1)`` in A, ``p(m1)``...). With
+        held states, the other states are chosen to make x' = f(x, u) as small as they can
+        (Gauss–Newton from the DC operating point, least squares); what remains is the point's
+        :attr:`OperatingPoint.drift` (empty at an equilibrium).
+
+    Raises
+    ------
+    NetlistError
+        A name that is neither an independent source nor a state.
     """
     circuit = NonlinearCircuit(netlist)
     u = np.array([circuit.dc_value(e) for e in circuit.sources])
+    states = {name.lower(): k for k, name in enumerate(circuit.state_names)}
+    held: dict[int, float] = {}
     for name, value in (at or {}).items():
-        key = name.lower()
-        if key not in circuit.source_index:
+        key = name.lower().replace(" ", "")
+        if key in circuit.source_index:
+            u[circuit.source_index[key]] = value
+        elif key in states:
+            held[states[key]] = value
+        else:
             raise NetlistError(
-                f"--at {name}: not an independent source of the netlist", SourceLocation(netlist.path, 0)
+                f"--at {name}: not an independent source or a state of the netlist "
+                f"(states: {', '.join(circuit.state_names) or 'none'})",
+                SourceLocation(netlist.path, 0),
             )
-        u[circuit.source_index[key]] = value
-    return circuit.operating_point(u)
+    if not held:
+        return circuit.operating_point(u)
+    return _held_point(netlist, circuit, u, held)
+
+
+#: A state derivative below this fraction of the terms that make it up (Σ|∂f/∂x|·|x|) is zero:
+#: the point is an equilibrium to rounding.
+EQUILIBRIUM_RTOL = 1e-9
+
+
+def _held_point(
+    netlist: Netlist, circuit: NonlinearCircuit, u: NDArray[np.float64], held: Mapping[int, float]
+) -> OperatingPoint:
+    """The point with some states held: the others by least squares on f, its drift f(x0, u0)."""
+    from .nltransient import NonlinearSystem
+
+    system = NonlinearSystem(netlist)
+    system.inputs = lambda t: u  # type: ignore[method-assign]
+    try:
+        x = circuit.states_at(circuit.operating_point(u))
+    except NoOperatingPoint:
+        x = np.zeros(len(circuit.state_names))
+    index = np.array(list(held), dtype=np.intp)
+    x[index] = list(held.values())
+    free = np.array([k for k in range(x.size) if k not in held], dtype=np.intp)
+    for _ in range(50 if free.size else 0):
+        f = system.f(0.0, x)
+        jac = system.jacobian(0.0, x)
+        jac = jac.toarray() if sp.issparse(jac) else np.asarray(jac)
+        step = np.linalg.lstsq(jac[:, free], -f, rcond=None)[0]
+        x[free] += step
+        if np.all(np.abs(step) <= 1e-14 * np.maximum(np.abs(x[free]), 1e-300)):
+            break
+    f = system.f(0.0, x)
+    jac = system.jacobian(0.0, x)
+    jac = jac.toarray() if sp.issparse(jac) else np.asarray(jac)
+    scale = np.abs(jac) @ np.abs(x)
+    names = circuit.state_names
+    drift = {names[k]: float(f[k]) for k in range(f.size) if abs(f[k]) > EQUILIBRIUM_RTOL * scale[k]}
+    point = circuit.operating_point(u, 0.0, "state", x)
+    return replace(point, method="states held (--at)", drift=drift)
 
 
 def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
@@ -1040,7 +1099,7 @@ def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
         )
         aux = f"x({node})"
         out.append(Element(Kind.VCCS, f"{aux}.in", (GROUND, aux), 1.0, loc, control_nodes=(node, GROUND)))
-        out.append(Element(Kind.CAPACITOR, aux, (aux, GROUND), 1.0, loc))
+        out.append(Element(Kind.CAPACITOR, aux, (aux, GROUND), 1.0, loc, keyword=DISPLACEMENT_KEYWORD))
     return replace(netlist, elements=tuple(out))
 
 
@@ -1114,6 +1173,9 @@ def point_text(point: OperatingPoint, netlist: Netlist) -> str:
     for e in netlist.elements:
         if e.key in point.currents:
             lines.append(f"  i({e.name}) = {point.currents[e.key]:.12g}")
+    if point.drift:
+        lines.append("not an equilibrium for these inputs (the held states move):")
+        lines += [f"  d{name}/dt = {value:.12g}" for name, value in point.drift.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -1129,18 +1191,30 @@ def point_dict(point: OperatingPoint, netlist: Netlist) -> dict[str, object]:
             f"i({e.name})": point.currents[e.key] for e in netlist.elements if e.key in point.currents
         },
         "inputs": dict(point.inputs),
+        **({"drift": {f"d{name}/dt": value for name, value in point.drift.items()}} if point.drift else {}),
     }
 
 
 def linear_warnings(netlist: Netlist, point: OperatingPoint) -> tuple[Diagnostic, ...]:
-    """A note that the model is the linearisation at the operating point."""
-    return (
+    """A note that the model is the linearisation at the operating point (and its drift, if any)."""
+    loc = SourceLocation(netlist.path, 0)
+    notes = [
         Diagnostic(
-            SourceLocation(netlist.path, 0),
+            loc,
             f"nonlinear netlist: A, B, C, D are its linearisation at the operating point ({point.method}, "
             f"residual {point.residual:.2g}), in deviations from it (simulate integrates the circuit itself)",
-        ),
-    )
+        )
+    ]
+    if point.drift:
+        terms = ", ".join(f"d{name}/dt = {value:.6g}" for name, value in point.drift.items())
+        notes.append(
+            Diagnostic(
+                loc,
+                f"--at: not an equilibrium for these inputs: {terms}; A, B, C, D are the Jacobians there "
+                "(this drift f(x0, u0) is left out of the model)",
+            )
+        )
+    return tuple(notes)
 
 
 def linearised(

@@ -68,7 +68,7 @@ def test_jacobian_is_the_linearisation() -> None:
     netlist = parse_file(str(PENDULUM))
     system = NonlinearSystem(netlist)
     J = system.jacobian(0.0, np.zeros(2))
-    A = compile_netlist(netlist).A  # states p(bob), q(x(bob))
+    A = compile_netlist(netlist).A  # states p(bob), x(bob)
     assert np.allclose(J, A, rtol=1e-14, atol=1e-14)
 
 
@@ -116,8 +116,8 @@ def test_oblique_blocks_equilibrium_and_linearisation(k1: float, k2: float) -> N
     A_ref = np.array(f.jacobian(state).subs(where).evalf(30), dtype=float)
     B_ref = np.array(f.jacobian(inputs).subs(where).evalf(30), dtype=float)
     model = compile_netlist(netlist)
-    # our states p(m1), p(m2), q(x(b1)), q(x(b2)) (momenta and displacements) -> (x1, x2, v1, v2)
-    order = {"q(x(b1))": (0, 1.0), "q(x(b2))": (1, 1.0), "p(m1)": (2, 1.0 / 1.0), "p(m2)": (3, 1.0 / 1.0)}
+    # our states p(m1), p(m2), x(b1), x(b2) (momenta and displacements) -> (x1, x2, v1, v2)
+    order = {"x(b1)": (0, 1.0), "x(b2)": (1, 1.0), "p(m1)": (2, 1.0 / 1.0), "p(m2)": (3, 1.0 / 1.0)}
     T = np.zeros((4, 4))
     for k, name in enumerate(model.states):
         row, scale = order[name]
@@ -211,3 +211,62 @@ def test_geometry_netlists_linearise_to_the_rod_models(
     assert exact.inputs == linear.inputs
     for ours, ref in ((exact.A, linear.A), (exact.B, linear.B)):
         assert np.abs(ours - ref).max() <= ROD_RTOL * np.abs(ref).max()
+
+
+# ------------------------------------------------ --at on states, and the displacement's name
+
+#: Eigenvalues of the linearisation at a held angle against the closed form ±sqrt(-(g/l) cos θ0):
+#: A is 2x2 with entries m·g·l·cos θ0 and 1/(m l²), exact to rounding.
+HELD_RTOL = 1e-12
+
+
+@pytest.mark.parametrize(
+    ("theta", "expected"),
+    [
+        (math.pi, [-math.sqrt(10.0), math.sqrt(10.0)]),  # upright: ±sqrt(g/l)
+        (0.0, [-1j * math.sqrt(10.0), 1j * math.sqrt(10.0)]),  # hanging: ±j sqrt(g/l)
+        (1.0, [-1j * math.sqrt(10.0 * math.cos(1.0)), 1j * math.sqrt(10.0 * math.cos(1.0))]),
+    ],
+)
+def test_linearisation_about_a_held_angle(theta: float, expected: list[complex]) -> None:
+    from netlistdyn.nonlinear import linearised
+
+    netlist = parse_file(str(PENDULUM))  # m = 1 kg, l = 1 m, g = 10 m/s²
+    point = operating_point(netlist, {"x(bob)": theta})
+    assert point.displacements["bob"] == theta
+    # f(x0, u0) = (−m g l sin θ0, 0): zero at the upright and hanging points, reported elsewhere
+    if abs(math.sin(theta)) > 1e-9:
+        assert set(point.drift) == {"p(bob)"}
+        assert abs(point.drift["p(bob)"] + 10.0 * math.sin(theta)) <= 1e-12 * 10.0
+    else:
+        assert point.drift == {}
+    lin, _ = linearised(netlist, at={"x(bob)": theta})
+    model = compile_netlist(lin)
+    assert model.states == ("p(bob)", "x(bob)")
+    eig = sorted(np.linalg.eigvals(model.A), key=lambda z: (z.real, z.imag))
+    for ours, ref in zip(
+        eig, sorted(expected, key=lambda z: (complex(z).real, complex(z).imag)), strict=True
+    ):
+        assert abs(ours - ref) <= HELD_RTOL * abs(ref)
+
+
+def test_at_state_cli_names_the_drift_and_the_state() -> None:
+    import json
+
+    from click.testing import CliRunner
+
+    from netlistdyn.cli import main
+
+    runner = CliRunner()
+    result = runner.invoke(main, ["analyze", str(PENDULUM), "--at", "x(bob)=3.14159"])
+    assert result.exit_code == 0, result.output
+    # sin(3.14159) = 2.65359e-6: the torque −m g l sin θ0 is the drift of p(bob)
+    assert "not an equilibrium for these inputs: dp(bob)/dt = -2.65359e-05" in result.output
+    assert "x(bob) [rad]" in result.output and "q(x(" not in result.output
+    result = runner.invoke(main, ["analyze", str(PENDULUM), "--format", "json"])
+    assert json.loads(result.stdout)["states"] == ["p(bob)", "x(bob)"]
+    result = runner.invoke(main, ["op", str(PENDULUM), "--at", "y(bob)=1"])
+    assert result.exit_code != 0
+    assert "--at y(bob): not an independent source or a state of the netlist (states: p(bob), x(bob))" in (
+        result.output
+    )
