@@ -209,10 +209,13 @@ def test_linearisation_names_states_and_at() -> None:
     ],
 )
 def test_bad_inputs_one_line(body: str, message: str) -> None:
-    text = "t\nV1 a 0 1\nR1 a 0 1k\n" + body + ".end\n"
+    assert_one_line_error("t\nV1 a 0 1\nR1 a 0 1k\n" + body + ".end\n", message)
+
+
+def assert_one_line_error(text: str, message: str) -> None:
+    """Compiling ``text`` fails with one line ``bad.cir:N: ...`` containing ``message``."""
     with pytest.raises(NetlistError) as info:
-        netlist = parse_text(text, "bad.cir")
-        compile_netlist(netlist)
+        compile_netlist(parse_text(text, "bad.cir"))
     assert message in str(info.value)
     assert str(info.value).startswith("bad.cir:")
     assert "\n" not in str(info.value)

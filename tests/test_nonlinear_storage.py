@@ -16,13 +16,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netlistdyn.errors import NetlistError
 from netlistdyn.formulate import compile_netlist
 from netlistdyn.netlist import Kind
 from netlistdyn.nltransient import run
 from netlistdyn.nonlinear import operating_point
 from netlistdyn.parser import parse_text
-from tests.test_nonlinear import AC_RTOL, OP_RTOL, TRAN_RTOL, _ngspice, _ngspice_tran, _values, needs_ngspice
+from tests.test_nonlinear import (
+    AC_RTOL,
+    OP_RTOL,
+    TRAN_RTOL,
+    _ngspice,
+    _ngspice_tran,
+    _values,
+    assert_one_line_error,
+    needs_ngspice,
+)
 
 #: One circuit with each form: C= on a grounded node, Q= on a floating pair read as v(b,c),
 #: L= reading the current of the 0 V source Vm in series.
@@ -127,9 +135,4 @@ def test_steps_against_closed_forms() -> None:
     ],
 )
 def test_bad_inputs_one_line(body: str, message: str) -> None:
-    text = "t\nV1 a 0 1\nR1 a 0 1k\n" + body + ".end\n"
-    with pytest.raises(NetlistError) as info:
-        compile_netlist(parse_text(text, "bad.cir"))
-    assert message in str(info.value)
-    assert str(info.value).startswith("bad.cir:")
-    assert "\n" not in str(info.value)
+    assert_one_line_error("t\nV1 a 0 1\nR1 a 0 1k\n" + body + ".end\n", message)
