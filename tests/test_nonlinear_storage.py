@@ -136,3 +136,18 @@ def test_steps_against_closed_forms() -> None:
 )
 def test_bad_inputs_one_line(body: str, message: str) -> None:
     assert_one_line_error("t\nV1 a 0 1\nR1 a 0 1k\n" + body + ".end\n", message)
+
+
+def test_validate_writes_the_forms_back_for_ngspice() -> None:
+    """validate: ngspice runs C=, Q=, L= as netlistdyn wrote them; the nonlinear transient agrees."""
+    pytest.importorskip("PySpice")
+    import shutil
+
+    if shutil.which("ngspice") is None:
+        pytest.skip("ngspice is not installed")
+    import netlistdyn
+
+    text = CIRCUIT.format(src="PULSE(0 2 0.5u 0.2u 0.2u 3u 10u)") + ".end\n"
+    check = netlistdyn.validate(text, tstop="2u", tstep="20n", pz=False)
+    assert check.passed
+    assert max(c.max_rel_error for c in check.report.comparisons) <= TRAN_RTOL
