@@ -1024,12 +1024,24 @@ def _held_point(
     index = np.array(list(held), dtype=np.intp)
     x[index] = list(held.values())
     free = np.array([k for k in range(x.size) if k not in held], dtype=np.intp)
+    f = system.f(0.0, x)
     for _ in range(50 if free.size else 0):
-        f = system.f(0.0, x)
         jac = system.jacobian(0.0, x)
         jac = jac.toarray() if sp.issparse(jac) else np.asarray(jac)
         step = np.linalg.lstsq(jac[:, free], -f, rcond=None)[0]
-        x[free] += step
+        for _ in range(40):  # damped: a step must lower |f| (and keep the network solvable)
+            trial = x.copy()
+            trial[free] += step
+            try:
+                f_trial = system.f(0.0, trial)
+            except NetlistError:
+                f_trial = np.full_like(f, np.inf)
+            if np.all(np.isfinite(f_trial)) and np.linalg.norm(f_trial) <= np.linalg.norm(f):
+                break
+            step = step / 2
+        else:
+            break
+        x, f = trial, f_trial
         if np.all(np.abs(step) <= 1e-14 * np.maximum(np.abs(x[free]), 1e-300)):
             break
     f = system.f(0.0, x)

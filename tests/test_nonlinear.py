@@ -321,3 +321,18 @@ def test_validate_nonlinear_netlist() -> None:
     assert check.passed
     worst = max(c.max_rel_error for c in check.report.comparisons)
     assert worst <= TRAN_RTOL
+
+
+def test_held_charge_reports_the_drift() -> None:
+    """op --at q(C1)=0.2u: v(a) = 0.2 V, the inductor's current settles (di/dt = 0: i = v(a)/R2) and
+    dq/dt = (1 − 0.2)/1k − 0.2/1k − Is (exp(0.2/Vt) − 1) − gmin·0.2 is reported as the drift."""
+    text = (
+        "t\n.model dm D(IS=1e-14)\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u\nD1 a 0 dm\nL1 a b 1m\nR2 b 0 1k\n.end\n"
+    )
+    point = operating_point(parse_text(text), {"q(C1)": 0.2e-6})
+    assert abs(point.voltages["a"] - 0.2) <= 1e-12
+    vt = 1.38064852e-23 * 300.15 / 1.6021766208e-19
+    expected = 0.8e-3 - 0.2e-3 - 1e-14 * math.expm1(0.2 / vt) - GMIN * 0.2
+    assert set(point.drift) == {"q(C1)"}
+    assert abs(point.drift["q(C1)"] - expected) <= 1e-9 * expected
+    assert abs(point.currents["l1"] - 0.2e-3) <= 1e-12
