@@ -26,9 +26,9 @@ from tests.test_nonlinear import (
     OP_RTOL,
     TRAN_RTOL,
     _ngspice,
-    _ngspice_tran,
     _values,
     assert_one_line_error,
+    assert_transient_matches,
     needs_ngspice,
 )
 
@@ -92,12 +92,7 @@ def test_transient_against_ngspice(tmp_path: Path) -> None:
     outputs = [f"v({n})" for n in NODES] + ["i(Vm)"]
     # ngspice's translation of C=/L= (unit-capacitor and unit-inductor auxiliaries, B sources) stops with
     # "timestep too small" at abstol 1e-14/vntol 1e-10: its default abstol (1 pA) and vntol (1 µV) here
-    ref = _ngspice_tran(text, 8e-6, outputs, tmp_path, options="reltol=1e-7 chgtol=1e-20 method=gear")
-    ours = run(parse_text(text + ".end\n"), outputs, ref[:, 0], rtol=1e-6)
-    for k, out in enumerate(outputs):
-        peak = np.abs(ref[:, k + 1]).max()
-        err = np.abs(ours.outputs[:, k] - ref[:, k + 1]).max()
-        assert err <= TRAN_RTOL * peak, (out, err / peak)
+    assert_transient_matches(text, 8e-6, outputs, tmp_path, options="reltol=1e-7 chgtol=1e-20 method=gear")
 
 
 def test_steps_against_closed_forms() -> None:
