@@ -270,3 +270,16 @@ def test_at_state_cli_names_the_drift_and_the_state() -> None:
     assert "--at y(bob): not an independent source or a state of the netlist (states: p(bob), x(bob))" in (
         result.output
     )
+
+
+def test_geometry_statics_are_exact() -> None:
+    """At rest the neglected vertical accelerations are zero, so the statics are the exact ones.
+
+    A horizontal force F on the lower bob of the double pendulum (m = 1 kg, l = 1 m, g = 10):
+    tan φ2 = F/(m2 g), tan φ1 = F/((m1 + m2) g); x1 = l1 sin φ1, x2 = x1 + l2 sin φ2.
+    """
+    point = operating_point(parse_file(str(NETLISTS / "double_pendulum_geometry.cir")), {"push": 5.0})
+    x1 = math.sin(math.atan(5.0 / 20.0))
+    x2 = x1 + math.sin(math.atan(5.0 / 10.0))
+    assert abs(point.displacements["b1"] - x1) <= 1e-12 * x1
+    assert abs(point.displacements["b2"] - x2) <= 1e-12 * x2
