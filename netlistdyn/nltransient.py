@@ -7,8 +7,9 @@ given states (:class:`netlistdyn.nonlinear.NonlinearCircuit` in ``state``
 mode: a capacitor is a voltage source q/C, an inductor a current source, a
 diode junction a voltage source at the voltage whose charge is q(D)); then
 
-- q(C)' = the capacitor's current, i(L)' = L⁻¹ v(L) (couplings included),
-  q(D)' = the junction's capacitive current.
+- q(C)' = the capacitor's current, i(L)' = L⁻¹ v(L) (couplings included;
+  v(L)/L(i) for an ``L={expr}`` inductor), q(D)' = the junction's capacitive
+  current.
 
 The Jacobian ∂f/∂x follows from the same factorisation by implicit
 differentiation (exact, no finite differences); it is the linearised A at

@@ -12,8 +12,9 @@ Two modes share the stamps:
 
 - ``dc``: capacitors open, inductors short (the operating point);
 - ``state``: each state is given — a capacitor's charge fixes its voltage
-  q/C, an inductor's current is a current source, a diode's junction charge
-  fixes its junction voltage — and the network is resistive. Solving it
+  (q/C, or the voltage whose charge is q for a ``C=``/``Q=`` capacitor,
+  :class:`Storage`), an inductor's current is a current source, a diode's
+  junction charge fixes its junction voltage — and the network is resistive. Solving it
   gives ``x' = f(x, u, t)`` (:mod:`netlistdyn.nltransient`), with the same
   charges and currents as states as the linear compiler.
 
