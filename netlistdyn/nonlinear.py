@@ -1111,7 +1111,17 @@ def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
             if any(r == DISPLACEMENT + node for _, r in b.behaviour.variables)
         )
         aux = f"x({node})"
-        out.append(Element(Kind.VCCS, f"{aux}.in", (GROUND, aux), 1.0, loc, control_nodes=(node, GROUND)))
+        out.append(
+            Element(
+                Kind.VCCS,
+                f"{aux}.in",
+                (GROUND, aux),
+                1.0,
+                loc,
+                control_nodes=(node, GROUND),
+                keyword=DISPLACEMENT_KEYWORD,
+            )
+        )
         out.append(Element(Kind.CAPACITOR, aux, (aux, GROUND), 1.0, loc, keyword=DISPLACEMENT_KEYWORD))
     return replace(netlist, elements=tuple(out))
 

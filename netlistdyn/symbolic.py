@@ -44,7 +44,7 @@ from .formulate import (
     held_displacements,
     primary_maps,
 )
-from .mechanics import carried_masses
+from .mechanics import DISPLACEMENT_KEYWORD, carried_masses
 from .netlist import Element, Kind, Netlist
 
 #: Largest model (states) for which symbolic matrices are computed.
@@ -157,7 +157,9 @@ def symbolic_model(
             f"(limit {SYMBOLIC_STATE_LIMIT})"
         )
     valued = {e.key: e for e in netlist.elements if e.kind in _VALUED}
-    wanted = {name.lower() for name in keep} if keep is not None else set(valued)
+    # a linearised mechanism's displacement integrators (1 F, 1 S) are not parameters of the system
+    default = {k for k, e in valued.items() if e.keyword != DISPLACEMENT_KEYWORD}
+    wanted = {name.lower() for name in keep} if keep is not None else default
     unknown = sorted(wanted - set(valued))
     if unknown:
         raise UsageError(

@@ -283,3 +283,16 @@ def test_geometry_statics_are_exact() -> None:
     x2 = x1 + math.sin(math.atan(5.0 / 10.0))
     assert abs(point.displacements["b1"] - x1) <= 1e-12 * x1
     assert abs(point.displacements["b2"] - x2) <= 1e-12 * x2
+
+
+def test_symbolic_linearisation_keeps_integrators_numeric() -> None:
+    """--symbolic on a mechanism: the forces' gains are symbols, the x(n) integrators (1 F, 1 S) are not."""
+    pytest.importorskip("sympy")
+    from netlistdyn.symbolic import symbolic_model
+
+    netlist = parse_file(str(NETLISTS / "double_pendulum_geometry.cir"))
+    model = symbolic_model(netlist)
+    assert set(model.symbols) == {"m1", "m2", "r1", "r2", "r2.t2"}
+    assert model.states == ("p(m1)", "p(m2)", "x(b1)", "x(b2)")
+    numeric = compile_netlist(netlist).A
+    assert np.abs(model.numeric()["A"] - numeric).max() <= 1e-12 * np.abs(numeric).max()
