@@ -70,6 +70,8 @@ CASES = [
     ("balanced.cir", ["--output", "v(a)", "--output", "v(b,c)", "--output", "i(R2)"]),
     ("pendulum.cir", ["--output", "v(bob)", "--tstop", "1"]),
     ("oblique_blocks.cir", ["--output", "v(b1)", "--output", "v(b2)", "--tstop", "0.3"]),
+    ("blocks_pendulum_geometry.cir", ["--output", "x(bob)", "--tstop", "2"]),
+    ("double_pendulum_geometry.cir", ["--output", "v(b2)", "--tstop", "1"]),
 ]
 
 
