@@ -289,14 +289,15 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
         split = math.sqrt(np.linalg.norm(a, 2) / np.linalg.norm(inv, 2))
         k = int(np.sum(np.abs(w) >= split))
         take_a, take_i = order_a[:k], order_i[k:]
-        small_w, small_l, small_r = lam_inv[take_i], ul[:, take_i], ur[:, take_i]
+        small_w = lam_inv[take_i].astype(complex)
+        small_l, small_r = ul[:, take_i].astype(complex), ur[:, take_i].astype(complex)
         # An unresolved μ = 0 among the small ones (possible when no eigenvalue of A reaches the
         # split, k = 0) keeps A's own value for that place rather than ∞.
         lost = ~np.isfinite(small_w)
         if np.any(lost):
             from_a = order_a[k:][lost]
             small_w[lost], small_l[:, lost], small_r[:, lost] = w[from_a], vl[:, from_a], vr[:, from_a]
-        w = np.concatenate([w[take_a], small_w])
+        w = np.concatenate([w[take_a].astype(complex), small_w])
         vl = np.concatenate([vl[:, take_a], small_l], axis=1)
         vr = np.concatenate([vr[:, take_a], small_r], axis=1)
         method = "LAPACK geev (balanced QR): large eigenvalues from A, small ones from A⁻¹"

@@ -313,6 +313,23 @@ def test_unverified_eigenvalue_bar_covers_the_reduction():
     assert eig.verdict in ("marginally stable", "undetermined")
 
 
+UNRESOLVED_INVERSE = """A⁻¹ leaves three of four eigenvalues unresolved (μ = 0), A keeps one above the split
+Vin n1 0 1
+R0 n2 n3 2.1770464945447987e-05
+L1 n2 0 228.2817579416207
+C2 n2 0 0.60452343448960433
+R3 n1 0 0.0011014151801114157
+R4 0 n2 0.7726334239744429
+C5 n2 n3 6.3777768826056822e-09
+L6 n2 0 8.3875731319146313e-06
+Rgn1 n1 0 8.4827460963484018
+Rgn2 n2 0 2483.2268300167539
+Rgn3 n3 0 1.2249773875203957e-14
+K1 L1 L6 0.92756985651203894
+.end
+"""
+
+
 @pytest.mark.parametrize(
     "text",
     [
@@ -326,6 +343,7 @@ def test_unverified_eigenvalue_bar_covers_the_reduction():
         COUNTED_TWICE,
         UNSCALED_VECTOR,
         MIXED_UNITS_SWEEP,
+        UNRESOLVED_INVERSE,
     ],
     ids=[
         "huge-root-lost",
@@ -338,6 +356,7 @@ def test_unverified_eigenvalue_bar_covers_the_reduction():
         "counted-twice",
         "unscaled-vector",
         "mixed-units-sweep",
+        "unresolved-inverse",
     ],
 )
 def test_wide_spread_reproducers_within_bars(text):
@@ -364,6 +383,9 @@ def test_wide_spread_reproducers_within_bars(text):
       method then jumped to −2.3e12, and the QZ sweep's range (entry ratios) stopped at 1e20.
     - mixed units sweep: exact {0, −5037949512897.046, −7.868267743675018e-13,
       −16905909835.299404 ± 62063634247208.72j}; the pair was reported as a real −5.0e12 ± 1 %.
+    - unresolved inverse: exact {0, −1.2799783117161576e22, −75967.02798377149, −18.588377385300262};
+      A⁻¹'s μ = 0 (∞ as λ) fell among the small eigenvalues kept from it (wide campaign seed 3,
+      network 513): they now keep A's own values for those places, for the pencil to refine.
     """
     netlist, _, eig = _analyse(text, ["v(n1)"])
     exact = exact_natural_frequencies(netlist)
