@@ -489,12 +489,18 @@ def _modal_error(
     lam, vecs, inv, _ = prop._modal
     eps = np.finfo(float).eps
     horizon = float(times[-1]) if times.size else 0.0
+    # The recurrence multiplies each mode by its rounded e^{λh} once per grid step: the same
+    # relative error eps every step, so it grows with the steps within the mode's memory (an
+    # eigenvalue error of eps/h; for a slow mode, eps times the grid's steps, not eps·|λ|·T).
+    steps = refine_grid(np.linspace(0.0, horizon, MODAL_GRID_POINTS), signals, smooth=False).size
+    spacing = horizon / max(steps - 1, 1)
     if prop.refined:
         # λ, V, V⁻¹B and CV are the 40-digit values rounded once: each entry is within eps
         # relative, so what remains is rounding in the evaluation and the sum's cancellation.
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             memory = np.where(lam.real < 0, np.minimum(horizon, 1.0 / np.abs(lam.real)), horizon)
-            dz = (8 * eps + eps * np.abs(lam) * memory) * zmax
+            recurrence = np.minimum(steps, memory / spacing + 1) if spacing > 0 else 0.0
+            dz = (8 * eps + eps * np.abs(lam) * memory + eps * recurrence) * zmax
             absolute = np.abs(model.C @ vecs) @ dz
             worst = float(np.max(absolute / _peaks(y)))
         return worst if math.isfinite(worst) else math.inf
@@ -524,7 +530,8 @@ def _modal_error(
         u_max = np.max(np.abs(signals(times)), axis=0) if model.ninputs else np.zeros(0)
         forcing = np.linalg.norm(bb, axis=0) @ u_max if model.ninputs else 0.0
         start = np.linalg.norm(np.asarray(x0, dtype=float) / t) if x0 is not None else 0.0
-        dz = eps * wnorm * (forcing * memory + start) + (dlam * memory + 8 * eps) * zmax
+        recurrence = np.minimum(steps, memory / spacing + 1) if spacing > 0 else 0.0
+        dz = eps * wnorm * (forcing * memory + start) + (dlam * memory + 8 * eps + eps * recurrence) * zmax
         cv = np.abs(cb @ vb)
         absolute = cv @ dz + eps * (np.linalg.norm(cb, axis=1)[:, None] * vnorm[None, :]) @ zmax
         relative = absolute / _peaks(y)
