@@ -27,7 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from powergrid import grid_netlist, probe_nodes
 
 
-def _run(text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, queue) -> None:
+def _run(
+    text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, tstep: float | None, queue
+) -> None:
     from netlistdyn.large import simulate_large
     from netlistdyn.parser import parse_text
     from netlistdyn.superpose import simulate_superposed
@@ -36,7 +38,15 @@ def _run(text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, 
     netlist = parse_text(text)
     if jobs:
         result = simulate_superposed(
-            netlist, jobs, scheduler, jobs, outputs=outputs, method="descriptor", rtol=rtol
+            netlist,
+            jobs,
+            scheduler,
+            jobs,
+            outputs=outputs,
+            method="descriptor",
+            rtol=rtol,
+            tstep=tstep,
+            tstop=None if tstep is None else 1e-8,
         )
         workers = float(result.stats["cpu_seconds"])
         detail = [
@@ -49,7 +59,7 @@ def _run(text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, 
         for job in detail:
             job["sources"] = len(job["sources"])
     else:
-        result = simulate_large(netlist, outputs, None, None, (), rtol=rtol)
+        result = simulate_large(netlist, outputs, None if tstep is None else 1e-8, tstep, (), rtol=rtol)
         workers, detail = 0.0, [{k: result.stats.get(k) for k in ("steps", "checks", "rejected")}]
     queue.put(
         {
@@ -62,11 +72,18 @@ def _run(text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, 
     )
 
 
-def run(text: str, outputs: list[str], rtol: float, jobs: int = 0, scheduler: str = "processes") -> dict:
+def run(
+    text: str,
+    outputs: list[str],
+    rtol: float,
+    jobs: int = 0,
+    scheduler: str = "processes",
+    tstep: float | None = None,
+) -> dict:
     """One run in a child process: CPU (with its workers'), wall, status, the outputs."""
     context = multiprocessing.get_context("spawn")
     queue = context.Queue()
-    child = context.Process(target=_run, args=(text, outputs, rtol, jobs, scheduler, queue))
+    child = context.Process(target=_run, args=(text, outputs, rtol, jobs, scheduler, tstep, queue))
     child.start()
     record = queue.get()
     child.join()
@@ -81,21 +98,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--scheduler", default="processes")
     parser.add_argument("--rtols", default="1e-6,1e-10")
+    parser.add_argument(
+        "--tstep", type=float, default=None, help="output step (s; default the .tran's 10 ps)"
+    )
     parser.add_argument("--reference", action="store_true", help="errors against a direct run at rtol 1e-11")
     args = parser.parse_args(argv)
     text = grid_netlist(args.size, args.kind)
     outputs = [f"v({n})" for n in probe_nodes(args.size)]
+    step = f"output step {args.tstep:g} s" if args.tstep else "output step 10 ps"
     print(
-        f"{args.kind.upper()} {args.size}x{args.size}, outputs {', '.join(outputs)}; load {os.getloadavg()}"
+        f"{args.kind.upper()} {args.size}x{args.size}, {step}, outputs {', '.join(outputs)}; "
+        f"load {os.getloadavg()}"
     )
     reference = None
     if args.reference:
-        ref = run(text, outputs, 1e-11)
+        ref = run(text, outputs, 1e-11, tstep=args.tstep)
         reference = np.array(ref["values"])
         print(f"reference: direct rtol 1e-11, {ref['cpu']:.2f} s CPU, {ref['wall']:.2f} s wall")
     for rtol in (float(r) for r in args.rtols.split(",")):
         for jobs in (0, args.jobs):
-            record = run(text, outputs, rtol, jobs, args.scheduler)
+            record = run(text, outputs, rtol, jobs, args.scheduler, args.tstep)
             label = "direct" if not jobs else f"superposed, {jobs} jobs on {args.scheduler}"
             error = ""
             if reference is not None:

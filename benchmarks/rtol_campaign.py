@@ -96,12 +96,24 @@ def campaign(count: int, start: int, log: bool, seconds: float) -> dict[tuple[st
         judged += 1
         if log and judged % 50 == 0:
             print(f"... {judged} judged (seed {seed})", flush=True)
+            report(table)
         seed += 1
     print(
         f"{judged} judged cases from seeds {start}..{seed - 1} ({skipped} left unjudged: no trustworthy "
         "reference, no state, or a growing mode)"
     )
     return table
+
+
+def report(table: dict[tuple[str, float], dict[str, float]]) -> None:
+    """One line per method and rtol (printed every 50 cases too, so a stopped run keeps its counts)."""
+    for (method, rtol), row in table.items():
+        print(
+            f"{method:>8} rtol {rtol:<6g} results {row['results']:>5}  ok {row['ok']:>5}  "
+            f"unverified {row['unverified']:>4}  other {row['other']:>3}  stopped {row['stopped']:>3}  "
+            f"violations {row['violations']:>3}  max error/rtol among ok {row['worst']:.3g}",
+            flush=True,
+        )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,12 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     tic, cpu = time.perf_counter(), time.process_time()
     table = campaign(args.count, args.start, not args.quiet, args.seconds)
-    for (method, rtol), row in table.items():
-        print(
-            f"{method:>8} rtol {rtol:<6g} results {row['results']:>5}  ok {row['ok']:>5}  "
-            f"unverified {row['unverified']:>4}  other {row['other']:>3}  stopped {row['stopped']:>3}  "
-            f"violations {row['violations']:>3}  max error/rtol among ok {row['worst']:.3g}"
-        )
+    report(table)
     print(f"{time.perf_counter() - tic:.0f} s wall, {time.process_time() - cpu:.0f} s CPU")
     violations = sum(row["violations"] for row in table.values())
     return 1 if violations else 0
