@@ -109,6 +109,26 @@ def _exact_mna(netlist) -> tuple[sympy.Matrix, sympy.Matrix]:
     return sympy.Matrix(G), sympy.Matrix(C)
 
 
+def natural_frequency_count(netlist) -> int:
+    """The number of finite natural frequencies: the degree of det(G + sC), exact.
+
+    Raises ValueError when the pencil is singular (det ≡ 0).
+    """
+    from sympy.polys.matrices import DomainMatrix
+
+    G, C = _exact_mna(netlist)
+    s = sympy.Symbol("s")
+    pencil = G + s * C
+    try:  # fraction-free over QQ[s]: fast; coupled inductors bring square roots (M = k·√(L1·L2))
+        expr = DomainMatrix.from_Matrix(pencil).convert_to(sympy.QQ[s]).det().as_expr()
+    except (ValueError, sympy.polys.polyerrors.CoercionFailed):
+        expr = sympy.expand(pencil.det(method="berkowitz"))
+    det = sympy.Poly(expr, s)
+    if det.is_zero:
+        raise ValueError("singular pencil")
+    return int(det.degree())
+
+
 def exact_natural_frequencies(netlist) -> list[complex]:
     """Roots of det(G + sC) (1/s) for the parsed netlist, as complex doubles.
 
