@@ -45,14 +45,15 @@ from netlistdyn.simulate import source_waveform
 from netlistdyn.transient import run_transient
 import resource
 path, rtol, outs, target = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[4]
-method = sys.argv[5]
+method, _, sub = sys.argv[5].partition("/")
+sub = int(sub or 1)
 netlist = parse_file(path)
 system = assemble(netlist, outs)
 tran = netlist.tran
-times = np.linspace(0.0, tran.tstop, round(tran.tstop / tran.tstep) + 1)
+times = np.linspace(0.0, tran.tstop, sub * round(tran.tstop / tran.tstep) + 1)
 waves = [source_waveform(e).resolved(tran.tstep, tran.tstop) for e in netlist.sources]
 run = run_transient(system, waves, times, rtol=rtol, method=method)
-np.save(target, run.outputs)
+np.save(target, run.outputs[::sub])
 keys = ("steps", "checks", "rejected", "factorisations", "factor_seconds", "step_seconds")
 print(json.dumps({"status": run.status, "unknowns": system.size, "method": method,
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -202,8 +203,8 @@ REFERENCES = {"ref": ("pade", "1e-11")}
 #: Runs an error can be measured against, in order of preference (``exact``: dense, small grids;
 #: then our CF run at the tightest rtol).
 REFERENCE_KEYS = ("exact", "cf_rtol1e-12", "ref")
-METHOD_KEY = {"pade": "", "cf": "_cf"}
-METHOD_LABEL = {"pade": "Padé", "cf": "CF"}
+METHOD_KEY = {"pade": "", "cf": "_cf", "cf/2": "_cf2"}
+METHOD_LABEL = {"pade": "Padé", "cf": "CF", "cf/2": "CF, 2 steps per output step"}
 
 
 def stored_run(store: Path, key: str, make: Callable[[], tuple]) -> dict:
@@ -226,7 +227,11 @@ def main() -> int:
     parser.add_argument("--kinds", default="rc,rlc")
     parser.add_argument("--rtols", default="1e-6,1e-8,1e-10")
     parser.add_argument("--runs", default=",".join(RUNS), help=f"which runs to make (of {', '.join(RUNS)})")
-    parser.add_argument("--methods", default="cf", help="stepping methods of our runs (cf, pade)")
+    parser.add_argument(
+        "--methods",
+        default="cf",
+        help="stepping methods of our runs (cf, pade; cf/2: output step split in 2)",
+    )
     parser.add_argument(
         "--reference",
         default="exact",

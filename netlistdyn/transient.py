@@ -64,7 +64,7 @@ MAIN, DIAGONAL, LOW = "main", "diagonal", "low"
 CHECK_ORDER = 8
 #: Stepping methods: ``cf``, near-best rational approximations of e^x on the whole negative real
 #: axis (one step per output interval on RC circuits, whatever their stiffness), and ``pade``.
-METHODS = ("cf", "pade")
+METHODS = ("cf", "pade", "auto")
 #: Default stepping method.
 DEFAULT_METHOD = "cf"
 #: Degrees of the CF approximants: the step, and its check (see :class:`CFStep`).
@@ -369,12 +369,20 @@ class _Steppers:
     """Factorised steps by length (and kind), the least recently used dropped beyond a bound."""
 
     def __init__(
-        self, system: DescriptorSystem, order: int, stats: dict[str, float], method: str = "pade"
+        self,
+        system: DescriptorSystem,
+        order: int,
+        stats: dict[str, float],
+        method: str = "pade",
+        lengths: int = CACHE_LENGTHS,
     ) -> None:
         self.system = system
         self.order = order
         self.stats = stats
         self.method = method
+        self.lengths = lengths
+        #: For ``auto`` (CF first): the Padé steps tried where a CF check fails.
+        self.fallback: _Steppers | None = None
         self.steady = _Steady(system) if method == "cf" else None
         self.cache: OrderedDict[tuple[float, str], PadeStep | CFStep] = OrderedDict()
 
@@ -393,7 +401,7 @@ class _Steppers:
             self.stats["factor_seconds"] += time.process_time() - tic
             self.stats["factorisations"] += len(step.factors)
             self.cache[key] = step
-            if len(self.cache) > CACHE_LENGTHS:
+            if len(self.cache) > self.lengths:
                 self.cache.popitem(last=False)
         else:
             self.cache.move_to_end(key)
@@ -479,10 +487,12 @@ def run_transient(
         File name for messages.
     progress : callable, optional
         Called with the fraction done.
-    method : {"cf", "pade"}
+    method : {"cf", "pade", "auto"}
         ``cf``: steps with the degree-:data:`CF_DEGREE` CF approximant
         (:class:`CFStep`), every check against degree :data:`CF_CHECK_DEGREE`;
-        ``pade``: the [order−1/order] Padé approximant, checked as above.
+        ``pade``: the [order−1/order] Padé approximant, checked as above;
+        ``auto``: CF, and where its check fails, the same step with Padé
+        (accepted if Padé's own check passes) before the step is halved.
 
     Returns
     -------
@@ -514,7 +524,10 @@ def run_transient(
         jump = x0 is not None or uic
         first = _consistent(system, x, u_start, float(times[1] - times[0]), order) if jump else x
         out[0] = system.C @ first + system.D @ u_start
-        steppers = _Steppers(system, order, stats, method)
+        steppers = _Steppers(system, order, stats, "pade" if method == "pade" else "cf")
+        if method == "auto":
+            steppers.fallback = _Steppers(system, order, stats, "pade", lengths=2)
+            stats["fallback_steps"] = 0
         points = breakpoints(waveforms, float(times[-1]))
         ctl = _Control(rtol, _Scale(first, system))
         bp_index = 0
@@ -664,6 +677,14 @@ def _piece(
             other = steppers(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
             ctl.scale.update(x_new)
             err = ctl.scale.error(x_new - other)
+            if not err <= ctl.rtol and steppers.fallback is not None:
+                # auto: the same step with Padé, checked as in the pade method, before halving
+                x_pade = steppers.fallback(h)(x, u0, slope)
+                other = steppers.fallback(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
+                err_pade = ctl.scale.error(x_pade - other)
+                if err_pade <= ctl.rtol:
+                    x_new, err = x_pade, err_pade
+                    stats["fallback_steps"] += 1
             if not err <= ctl.rtol:
                 stats["rejected"] += 1
                 if trying:  # wait twice as long before the next attempt
