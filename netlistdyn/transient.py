@@ -491,8 +491,8 @@ def run_transient(
         ``cf``: steps with the degree-:data:`CF_DEGREE` CF approximant
         (:class:`CFStep`), every check against degree :data:`CF_CHECK_DEGREE`;
         ``pade``: the [order−1/order] Padé approximant, checked as above;
-        ``auto``: CF, and where its check fails, the same step with Padé
-        (accepted if Padé's own check passes) before the step is halved.
+        ``auto``: CF until a CF check fails where the same step with Padé
+        passes Padé's own check; Padé from there on (checked as ``pade``).
 
     Returns
     -------
@@ -625,6 +625,8 @@ class _Control:
     coarser: bool = False
     wait: int = 0
     patience: int = 1
+    #: ``auto``: Padé from the first step where CF failed its check and Padé passed its own.
+    pade: bool = False
 
 
 def _piece(
@@ -665,7 +667,8 @@ def _piece(
         s1 = t1 if pos + n_units >= end else t0 + (pos + n_units) * span / end
         u1 = values(s1)
         slope = (u1 - u0) / h
-        x_new = steppers(h)(x, u0, slope)
+        active = steppers.fallback if ctl.pade and steppers.fallback is not None else steppers
+        x_new = active(h)(x, u0, slope)
         stats["steps"] += 1
         ctl.since_check += 1
         if ctl.rtol > 0 and (must_check or ctl.since_check >= CHECK_INTERVAL):
@@ -674,16 +677,19 @@ def _piece(
             # After a breakpoint: the lower-order L-stable approximant (the stiff modes the
             # inputs excite are damped by both, by different factors); otherwise the diagonal
             # one (an unresolved, lightly damped oscillation keeps its modulus there only).
-            other = steppers(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
+            other = active(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
             ctl.scale.update(x_new)
             err = ctl.scale.error(x_new - other)
-            if not err <= ctl.rtol and steppers.fallback is not None:
-                # auto: the same step with Padé, checked as in the pade method, before halving
+            if not err <= ctl.rtol and steppers.fallback is not None and not ctl.pade:
+                # auto: the same step with Padé, checked as in the pade method, before halving;
+                # if it passes, Padé from here on (CF failed at this step length: the steps
+                # between checks would otherwise go on with CF unchecked)
                 x_pade = steppers.fallback(h)(x, u0, slope)
                 other = steppers.fallback(h, LOW if kind_first else DIAGONAL)(x, u0, slope)
                 err_pade = ctl.scale.error(x_pade - other)
                 if err_pade <= ctl.rtol:
                     x_new, err = x_pade, err_pade
+                    ctl.pade = True
                     stats["fallback_steps"] += 1
             if not err <= ctl.rtol:
                 stats["rejected"] += 1

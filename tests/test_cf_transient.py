@@ -138,3 +138,24 @@ def test_ramp_through_rc_matches_closed_form(tau_over_h: float) -> None:
     assert run.status == "ok"
     expected = slope * (times - tau * -np.expm1(-times / tau))
     assert np.abs(run.outputs[:, 0] - expected).max() <= 1e-10
+
+
+def test_auto_falls_back_to_pade_on_an_unresolved_oscillation() -> None:
+    """A lightly damped LC (ω = 1e9 rad/s, ζ = 0.05) stepped at hω = 1: off the real axis CF
+    fails its check and halves (more steps than output intervals); ``auto`` switches to Padé,
+    which resolves it at that step, so it takes one step per output interval. Both within
+    rtol (1e-10) of the largest voltage (~1.9 V), times 2 for the first, unchecked step."""
+    h, stop, rtol = 1e-9, 300e-9, 1e-10
+    net = parse_text("lc\nV1 a 0 PWL(0 0 1n 1)\nR1 a b 0.1\nL1 b c 1n\nC1 c 0 1n\n.tran 1n 300n\n.end\n")
+    system = descriptor.assemble(net, ["v(c)"])
+    times = np.linspace(0.0, stop, 301)
+    waves = [source_waveform(e).resolved(h, stop) for e in net.sources]
+    exact = _exact(system, waves, times)
+    cf = transient.run_transient(system, waves, times, rtol=rtol, method="cf")
+    auto = transient.run_transient(system, waves, times, rtol=rtol, method="auto")
+    assert cf.status == auto.status == "ok"
+    assert cf.stats["steps"] > times.size - 1
+    assert auto.stats["steps"] == times.size - 1 and auto.stats["fallback_steps"] == 1
+    largest = np.abs(exact).max()
+    for run in (cf, auto):
+        assert np.abs(run.outputs - exact).max() <= 2 * rtol * largest
