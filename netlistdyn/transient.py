@@ -11,15 +11,17 @@ DC operating point
 Time stepping (``descriptor``)
     The inputs are linear between breakpoints, and are carried exactly by a
     nilpotent augmentation ``[x; u; u']``, so the only approximation is that
-    of the exponential ``e^{hM}``. Default (``cf``): the near-best type
+    of the exponential ``e^{hM}``. ``cf``: the near-best type
     (14, 14) rational approximation of e^x on the whole negative real axis
     (CF poles, :mod:`netlistdyn._cf_table`; within 2.6e-14 of e^x there,
     exact at 0), in partial fractions — one complex factor per conjugate
     pole pair, applied as ``(hA − zE)⁻¹E`` — so on an RC circuit (real,
     non-positive spectrum) a step of any length is accurate and the step is
-    the output step. Alternatively (``pade``) the L-stable [k−1/k] Padé
-    approximant (k = 12: order 23), accurate only for small ``|hλ|``, in
-    product form ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair. Either
+    the output step. ``pade``: the L-stable [k−1/k] Padé approximant
+    (k = 12: order 23), accurate only for small ``|hλ|``, in product form
+    ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair. ``auto`` (the
+    default): CF, and Padé from the first step where CF's check fails and
+    Padé's passes (modes off the real axis that Padé resolves). Either
     way ``(hM − p)⁻¹ y = (hA − pE)⁻¹ E y`` needs no inverse of the singular
     ``E``, and, both approximants being strictly proper, the algebraic
     unknowns (nodes without a capacitor, source currents) come out
@@ -65,8 +67,10 @@ CHECK_ORDER = 8
 #: Stepping methods: ``cf``, near-best rational approximations of e^x on the whole negative real
 #: axis (one step per output interval on RC circuits, whatever their stiffness), and ``pade``.
 METHODS = ("cf", "pade", "auto")
-#: Default stepping method.
-DEFAULT_METHOD = "cf"
+#: Default stepping method: ``auto`` (CF, Padé from where CF's check fails and Padé's passes).
+#: Measured: on RC/RLC grids CF never fails (auto = cf, 4-30x faster than Padé at rtol 1e-10);
+#: on ibmpg1t at rtol 1e-12 auto took 40 s CPU against cf's 55 s (Padé 28 s).
+DEFAULT_METHOD = "auto"
 #: Degrees of the CF approximants: the step, and its check (see :class:`CFStep`).
 CF_DEGREE, CF_CHECK_DEGREE = 14, 12
 #: Default step check tolerance (relative to the largest voltage, or current, seen).
