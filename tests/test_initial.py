@@ -180,3 +180,23 @@ def test_descriptor_uic_capacitor_loop_conserves_node_charge_as_ngspice() -> Non
     for j in range(2):
         ref = np.interp(ours.time, theirs[:, 0], theirs[:, j + 1])
         assert np.max(np.abs(ours.values[1:, j] - ref[1:])) < TOLERANCE * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
+def test_operating_point_at_realistic_values_is_found(scale: float) -> None:
+    """An RLC ladder at realistic values (50 Ω, 10 µH, 1 nF, 1 µH, 100 pF, 1 kΩ, 1 MΩ; and the same
+    with every L and C scaled by 1e-3 and 1e3) has a unique operating point: every node at
+    V·(R2 ∥ R3)/(R1 + R2 ∥ R3). Its A has entries decades apart (charges beside currents), and the
+    unscaled condition number once called it singular. Tolerance 1e-12 relative: one dense solve of
+    an equilibrated 4 × 4 system."""
+    text = (
+        "rlc at realistic values\nV1 in 0 DC 1\nR1 in a 50\n"
+        f"L1 a b {10e-6 * scale}\nC1 b 0 {1e-9 * scale}\nR2 b 0 1k\n"
+        f"L2 b c {1e-6 * scale}\nC2 c 0 {100e-12 * scale}\nR3 c 0 1meg\n.tran 1n 2u\n.end\n"
+    )
+    netlist = parse_text(text)
+    model = compile_netlist(netlist, ["v(b)", "v(c)", "i(L1)"])
+    x0 = transient_start(netlist, model, np.array([1.0])).x0
+    parallel = 1e3 * 1e6 / (1e3 + 1e6)
+    v = parallel / (50 + parallel)
+    np.testing.assert_allclose(model.C @ x0 + model.D @ [1.0], [v, v, v / parallel], rtol=1e-12)
