@@ -12,13 +12,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .descriptor import DescriptorSystem, assemble, supports
 from .errors import UsageError
 from .netlist import Kind, Netlist
+
+if TYPE_CHECKING:
+    from .simulate import Horizon
 
 #: Above this many MNA unknowns, ``auto`` uses the descriptor form.
 DESCRIPTOR_UNKNOWNS = 5000
@@ -57,6 +60,26 @@ def _initial_unknowns(system: DescriptorSystem, ics: Sequence[str]) -> np.ndarra
             )
         x0[index[key]] = value
     return x0
+
+
+def descriptor_horizon(netlist: Netlist, tstop: float | None, tstep: float | None) -> Horizon:
+    """The horizon of a descriptor-form run: ``--tstop``/``--tstep``, else the netlist's ``.tran``.
+
+    Raises
+    ------
+    UsageError
+        A non-positive ``tstop``/``tstep``, or neither a ``--tstop`` nor a ``.tran``.
+    """
+    from .simulate import Horizon
+
+    for value, flag in ((tstop, "--tstop"), (tstep, "--tstep")):
+        if value is not None and not value > 0:
+            raise UsageError(f"{flag} must be positive")
+    if tstop is not None:
+        return Horizon(tstep or tstop / 1000, tstop, "command line")
+    if netlist.tran is not None:
+        return Horizon(tstep or netlist.tran.tstep, netlist.tran.tstop, ".tran in the netlist")
+    raise UsageError("the descriptor form needs a horizon: give --tstop (or a .tran in the netlist)")
 
 
 def simulate_large(
@@ -99,19 +122,11 @@ def simulate_large(
     from .api import Simulation
     from .display import signal_units
     from .initial import uses_uic
-    from .simulate import Horizon, source_waveform
+    from .simulate import source_waveform
     from .transient import CF_CHECK_DEGREE, CF_DEGREE, DEFAULT_METHOD, DEFAULT_ORDER, run_transient
     from .waveforms import check_breakpoints
 
-    for value, flag in ((tstop, "--tstop"), (tstep, "--tstep")):
-        if value is not None and not value > 0:
-            raise UsageError(f"{flag} must be positive")
-    if tstop is not None:
-        horizon = Horizon(tstep or tstop / 1000, tstop, "command line")
-    elif netlist.tran is not None:
-        horizon = Horizon(tstep or netlist.tran.tstep, netlist.tran.tstop, ".tran in the netlist")
-    else:
-        raise UsageError("the descriptor form needs a horizon: give --tstop (or a .tran in the netlist)")
+    horizon = descriptor_horizon(netlist, tstop, tstep)
     count = round(horizon.tstop / horizon.tstep)
     if count > 10_000_000:
         raise UsageError(f"{count} output points: choose a larger --tstep")

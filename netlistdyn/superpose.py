@@ -377,15 +377,10 @@ def descriptor_task(
     rtol: float,
 ) -> tuple[Task, Any]:
     """The shared task of a superposed descriptor simulation, and its horizon."""
-    from .simulate import Horizon
+    from .large import descriptor_horizon
 
     check_linear(netlist)
-    if tstop is not None:
-        horizon = Horizon(tstep or tstop / 1000, tstop, "command line")
-    elif netlist.tran is not None:
-        horizon = Horizon(tstep or netlist.tran.tstep, netlist.tran.tstop, ".tran in the netlist")
-    else:
-        raise UsageError("the descriptor form needs a horizon: give --tstop (or a .tran in the netlist)")
+    horizon = descriptor_horizon(netlist, tstop, tstep)
     task = Task(
         netlist,
         "descriptor",
