@@ -21,10 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
-import subprocess
 import sys
-import time
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -33,8 +30,11 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(ROOT))
 
 from powergrid import grid_netlist, probe_nodes  # noqa: E402
+
+from netlistdyn.processes import run_program  # noqa: E402
 
 OURS = r"""
 import json, sys, time
@@ -153,19 +153,11 @@ NGSPICE_TIGHT = ".options reltol=1e-9 abstol=1e-15 vntol=1e-12 chgtol=1e-20\n"
 
 def child(args: list[str], timeout: float) -> tuple[dict | None, float, float, str]:
     """Run a child limited to ``timeout`` CPU seconds (the machine is shared: wall time is not
-    the measure); (its JSON line or None, CPU s, wall s, status)."""
+    the measure), BLAS on one thread; (its JSON line or None, CPU s, wall s, status)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-
-    def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_CPU, (int(timeout), int(timeout) + 5))
-
-    done = subprocess.run(args, capture_output=True, text=True, env=env, preexec_fn=limit, check=False)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    if done.returncode < 0 or cpu >= timeout:
+    done = run_program(args, None, cpu_limit=timeout, env=env)
+    cpu, wall = done.cpu, done.wall
+    if done.how == "cpu limit":
         return None, cpu, wall, f"stopped at the {timeout:g} s CPU limit"
     lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
     report = json.loads(lines[-1]) if lines else None

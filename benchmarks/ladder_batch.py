@@ -18,8 +18,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import resource
-import subprocess
 import sys
 import tempfile
 import time
@@ -39,23 +37,15 @@ sys.path.insert(0, str(ROOT))
 
 from ladder import ladder_netlist  # noqa: E402
 
+from netlistdyn.processes import run_program  # noqa: E402
+
 POINTS = 1000
 
 
 def child(args: list[str], timeout: float) -> tuple[float, float, int]:
     """Run a child limited to ``timeout`` CPU seconds; (CPU s, wall s, exit code)."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-
-    def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_CPU, (int(timeout), int(timeout) + 5))
-
-    done = subprocess.run(args, capture_output=True, text=True, env=env, preexec_fn=limit, check=False)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, wall, done.returncode
+    done = run_program(args, None, cpu_limit=timeout, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return done.cpu, done.wall, done.returncode
 
 
 def ngspice_deck(text: str, outputs: list[str], tstop: float, method: str, data: Path) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import resource
 import signal
 import subprocess
 import tempfile
@@ -74,7 +75,8 @@ class ProgramRun:
     ----------
     how : str
         "ok" (it exited by itself, whatever its status), "timeout" (killed at
-        the time limit) or "missing" (the program could not be started).
+        the time limit), "cpu limit" (stopped at its CPU-seconds limit) or
+        "missing" (the program could not be started).
     returncode : int
         Its exit status (negative: killed by that signal).
     stdout, stderr : str
@@ -101,7 +103,13 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
-def run_program(args: list[str], timeout: float | None, cwd: str | None = None) -> ProgramRun:
+def run_program(
+    args: list[str],
+    timeout: float | None,
+    cwd: str | None = None,
+    cpu_limit: float | None = None,
+    env: dict[str, str] | None = None,
+) -> ProgramRun:
     """Run a program with a time limit and measure its own CPU and wall time.
 
     The child's resource usage comes from ``wait4`` on that child alone (not
@@ -118,11 +126,22 @@ def run_program(args: list[str], timeout: float | None, cwd: str | None = None) 
         process is interrupted or dies).
     cwd : str, optional
         Working directory.
+    cpu_limit : float, optional
+        CPU seconds the child may use (``RLIMIT_CPU``): a measure that a machine
+        shared with other jobs does not stretch, unlike ``timeout``.
+    env : dict, optional
+        The child's environment (default: this process's).
     """
+
+    def prepare() -> None:
+        _die_with_parent()
+        if cpu_limit is not None:
+            resource.setrlimit(resource.RLIMIT_CPU, (int(cpu_limit), int(cpu_limit) + 5))
+
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         try:
-            proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=cwd, preexec_fn=_die_with_parent)
+            proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=cwd, env=env, preexec_fn=prepare)
         except OSError as exc:
             return ProgramRun("missing", -1, "", str(exc), 0.0, 0.0)
         deadline = None if timeout is None else start + timeout
@@ -146,6 +165,9 @@ def run_program(args: list[str], timeout: float | None, cwd: str | None = None) 
                 pid, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - start
         proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+        cpu = usage.ru_utime + usage.ru_stime
+        if how == "ok" and cpu_limit is not None and (proc.returncode < 0 or cpu >= cpu_limit):
+            how = "cpu limit"
         out.seek(0)
         err.seek(0)
         return ProgramRun(
@@ -153,6 +175,6 @@ def run_program(args: list[str], timeout: float | None, cwd: str | None = None) 
             proc.returncode,
             out.read().decode("utf-8", "replace"),
             err.read().decode("utf-8", "replace"),
-            usage.ru_utime + usage.ru_stime,
+            cpu,
             wall,
         )

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -119,6 +120,22 @@ def test_run_program_stops_a_program_at_its_limit() -> None:
     assert run.cpu > 0
     done = run_program([sys.executable, "-c", "print('hi')"], 30)
     assert done.how == "ok" and done.returncode == 0 and done.stdout.strip() == "hi"
+
+
+def test_run_program_stops_a_program_at_its_cpu_limit() -> None:
+    """RLIMIT_CPU of 1 s on a busy loop: stopped by the kernel after about 1 CPU second (SIGXCPU at
+    the soft limit; the wall limit of 60 s is not reached), reported as "cpu limit"; a child
+    within its limit is "ok", and the environment given is the child's."""
+    run = run_program([sys.executable, "-c", "while True: pass"], 60, cpu_limit=1)
+    assert run.how == "cpu limit" and run.returncode < 0
+    assert 0.9 <= run.cpu < 7
+    done = run_program(
+        [sys.executable, "-c", "import os; print(os.environ['ND_PROBE'])"],
+        30,
+        cpu_limit=30,
+        env={**os.environ, "ND_PROBE": "given"},
+    )
+    assert done.how == "ok" and done.stdout.strip() == "given"
 
 
 @pytest.mark.skipif(batch_missing() is not None, reason="ngspice not installed")
