@@ -23,6 +23,8 @@ from netlistdyn.netlist import Kind
 from netlistdyn.nonlinear import NoOperatingPoint, linearised, operating_point
 from netlistdyn.parser import parse_text
 
+from .conftest import NETLISTS
+
 #: Agreement demanded with ngspice's .op: both solve the same equations with
 #: Newton to rounding level (ngspice at reltol 1e-12); 1e-9 leaves room for
 #: the conditioning of the node equations only. Currents are compared with a
@@ -233,34 +235,12 @@ def test_no_operating_point_is_reported() -> None:
 #: Transient agreement with ngspice (issue #14): max error over the run relative to the peak.
 TRAN_RTOL = 1e-4
 
+#: The example netlists of netlists/ (a .tran each) and the outputs compared.
 TRANSIENTS = {
-    "rectifier": (
-        "half-wave rectifier\n" + _MODEL + "V1 in 0 SIN(0 5 1k)\nD1 in out dm\nR1 out 0 1k\nC1 out 0 1u\n",
-        1e-3,
-        ["v(out)"],
-    ),
-    "clipper": (
-        "diode clipper\n"
-        + _MODEL
-        + "V1 in 0 SIN(0 3 10k)\nR1 in out 470\nD1 out a dm\nV2 a 0 0.6\nD2 b out dm\nV3 b 0 -0.6\n"
-        "C1 out 0 2.2n\nR2 out 0 10k\n",
-        1e-4,
-        ["v(out)"],
-    ),
-    "b-source RC": (
-        "nonlinear RC\nV1 in 0 PULSE(0 2 5u 1u 1u 40u 100u)\nR1 in a 1k\nC1 a 0 10n\n"
-        "B1 a 0 I={2m*v(a)**3 + 0.5m*tanh(v(a))}\nE1 b 0 value={v(a)*v(a)}\nR2 b c 100\nC2 c 0 100n\n",
-        1e-4,
-        ["v(a)", "v(c)"],
-    ),
-    "diode-RC ladder": (
-        "diode-RC ladder\n"
-        + _MODEL
-        + "V1 n0 0 PULSE(0 3 1u 1u 1u 20u 50u)\n"
-        + "".join(f"R{k} n{k - 1} n{k} 1k\nD{k} n{k} 0 dm\nC{k} n{k} 0 1n\n" for k in range(1, 5)),
-        5e-5,
-        ["v(n1)", "v(n4)"],
-    ),
+    "rectifier": ("rectifier.cir", ["v(out)"]),
+    "clipper": ("clipper.cir", ["v(out)"]),
+    "b-source RC": ("nonlinear_rc.cir", ["v(a)", "v(c)"]),
+    "diode-RC ladder": ("diode_ladder.cir", ["v(n1)", "v(n4)"]),
 }
 
 
@@ -294,8 +274,12 @@ def _ngspice_tran(
 @needs_ngspice
 @pytest.mark.parametrize("name", list(TRANSIENTS))
 def test_transient_against_ngspice(name: str, tmp_path: Path) -> None:
-    text, tstop, outputs = TRANSIENTS[name]
-    assert_transient_matches(text, tstop, outputs, tmp_path)
+    file, outputs = TRANSIENTS[name]
+    lines = (NETLISTS / file).read_text().splitlines(keepends=True)
+    text = "".join(line for line in lines if line.strip().lower() != ".end")
+    tran = parse_text(text + ".end\n").tran
+    assert tran is not None
+    assert_transient_matches(text, tran.tstop, outputs, tmp_path)
 
 
 def assert_transient_matches(

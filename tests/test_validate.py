@@ -72,6 +72,10 @@ CASES = [
     ("oblique_blocks.cir", ["--output", "v(b1)", "--output", "v(b2)", "--tstop", "0.3"]),
     ("blocks_pendulum_geometry.cir", ["--output", "x(bob)", "--tstop", "2"]),
     ("double_pendulum_geometry.cir", ["--output", "v(b2)", "--tstop", "1"]),
+    ("rectifier.cir", ["--output", "v(out)"]),
+    ("clipper.cir", ["--output", "v(out)"]),
+    ("nonlinear_rc.cir", ["--output", "v(a)", "--output", "v(c)"]),
+    ("diode_ladder.cir", ["--output", "v(n4)"]),
 ]
 
 
