@@ -605,6 +605,7 @@ def symbolic_dict(model: Any) -> dict[str, Any]:
     doc: dict[str, Any] = {
         "symbols": {names[name]: value for name, (_, value) in model.symbols.items()},
     }
+    doc["symbol_units"] = {names[name]: model.units.get(name, "") for name in model.symbols}
     renamed = {names[name]: name for name in model.symbols if names[name] != name}
     if renamed:  # E, I, pi, X1.R1 … would not read back as symbols
         doc["symbol_elements"] = renamed
@@ -621,7 +622,9 @@ def symbolic_text(model: Any) -> str:
 
     from .display import element_value
 
-    symbols = ", ".join(element_value(name, value) for name, (_, value) in model.symbols.items())
+    symbols = ", ".join(
+        element_value(name, value, model.units.get(name, "")) for name, (_, value) in model.symbols.items()
+    )
     out = ["", f"symbolic model (sympy; netlist values: {symbols or 'none, all substituted'})"]
     labels = {
         "A": (model.states, model.states),

@@ -20,11 +20,12 @@ from __future__ import annotations
 import keyword
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .display import element_unit
 from .errors import NetlistError, UsageError
 
 try:
@@ -78,6 +79,10 @@ class SymbolicModel:
         value the netlist gives it, in the element's own unit (a spring's
         stiffness k in N/m, not its analog inductance 1/k).
     title : str
+    units : dict
+        ``name -> unit`` of each symbol's value (``"N/m"``, ``"Ω"``, ``"A/V"``;
+        ``""`` when dimensionless), from the element's kind and mechanical
+        keyword (:func:`~netlistdyn.display.element_unit`), never from its name.
     """
 
     A: sympy.ImmutableMatrix
@@ -90,6 +95,7 @@ class SymbolicModel:
     outputs: tuple[str, ...]
     symbols: Mapping[str, tuple[sympy.Symbol, float]]
     title: str
+    units: Mapping[str, str] = field(default_factory=dict)
 
     def numeric(self, values: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
         """The matrices as float arrays, with the netlist's values unless overridden.
@@ -171,8 +177,11 @@ def symbolic_model(
         for key, e in valued.items()
         if key in wanted and e.rod is None
     }
+    units = {e.name: element_unit(netlist, e) for e in valued.values() if e.name in symbols}
     by_name = {name: sym for name, (sym, _) in symbols.items()}
-    rod_terms = _rod_symbols([e for k, e in valued.items() if k in wanted and e.rod is not None], symbols)
+    rod_terms = _rod_symbols(
+        [e for k, e in valued.items() if k in wanted and e.rod is not None], symbols, units
+    )
     carried = carried_masses(netlist.elements)
 
     def rod_length(rod: Element) -> sympy.Expr:
@@ -196,13 +205,15 @@ def symbolic_model(
 
     A, B, C, D, D1 = _reduce(form, value, mutual, rod_length)
     model = form.model
-    return SymbolicModel(A, B, C, D, D1, model.states, model.inputs, model.outputs, symbols, netlist.title)
+    return SymbolicModel(
+        A, B, C, D, D1, model.states, model.inputs, model.outputs, symbols, netlist.title, units
+    )
 
 
 def _rod_symbols(
-    rods: Sequence[Element], symbols: dict[str, tuple[sympy.Symbol, float]]
+    rods: Sequence[Element], symbols: dict[str, tuple[sympy.Symbol, float]], units: dict[str, str]
 ) -> dict[str, tuple[sympy.Symbol, sympy.Symbol]]:
-    """Length ``l_<rod>`` and gravity ``g`` symbols of the kept rods (added to ``symbols``).
+    """Length ``l_<rod>`` and gravity ``g`` symbols of the kept rods (added to ``symbols``, in m and m/s²).
 
     One ``g`` serves every rod when they share its value and no element is
     called g; otherwise each rod has its own ``g_<rod>``.
@@ -212,9 +223,10 @@ def _rod_symbols(
     for rod in rods:
         assert rod.rod is not None
         l_name, g_name = f"l_{rod.name}", "g" if shared else f"g_{rod.name}"
-        for name, number in ((l_name, rod.rod.length), (g_name, rod.rod.g)):
+        for name, number, unit in ((l_name, rod.rod.length, "m"), (g_name, rod.rod.g, "m/s²")):
             if name not in symbols:
                 symbols[name] = (sympy.Symbol(name, positive=True), number)
+                units[name] = unit
         out[rod.key] = (symbols[l_name][0], symbols[g_name][0])
     return out
 

@@ -188,3 +188,88 @@ def test_blocks_pendulum_has_the_seeds_characteristic_polynomial(inverted: bool)
     assert ours.degree() == seed.degree() == 6
     for a, b in zip(ours.all_coeffs(), seed.all_coeffs(), strict=True):
         assert sympy.cancel(a - b) == 0, (a, b)
+
+
+# --- units: from the element's kind and mechanical keyword, never from its name -------------------
+
+#: Element names whose first letters suggest the wrong unit (R, C, L, i, r): a capacitor and a resistor
+#: inside a subcircuit (X1.C1, X1.R1), a mass R2, a spring C3, a damper i1, and a force L2 that reads its
+#: node's velocity (linearised: a VCCS named L2 whose gain is a damping in N·s/m).
+MISLEADING = """Misleading names: a filter cell beside a damped mass
+.subckt cell a b
+R1 a m 1k
+C1 m b 1u
+.ends
+V1 in 0 DC 1
+X1 in out cell
+Rload out 0 10k
+MASS R2 b1 2
+SPRING C3 b1 0 50
+DAMPER i1 b1 0 0.5
+FORCE L2 b1 0 {-3*v(b1)}
+FORCE F1 b1 0 DC 0
+.end
+"""
+
+#: A 2 kg bob on a 0.5 m rod about a fixed pivot, with a torque named r1 (a pendulum rod's usual name)
+#: that is gravity's -m·g·l·sin(theta), and a bearing friction named R2 that reads the angular velocity.
+TORQUE_R1 = """Pendulum whose gravity torque is named r1
+.param m=2 l=0.5 g=9.81
+INERTIA bob bob {m*l*l}
+TORQUE r1 bob 0 {-m*g*l*sin(x(bob))}
+TORQUE R2 bob 0 {-0.05*v(bob)}
+.end
+"""
+
+
+def _symbolic_text(tmp_path, text: str, name: str, *extra: str) -> str:
+    path = tmp_path / name
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["analyze", str(path), "--symbolic", "--eig", "none", *extra])
+    assert result.exit_code == 0, result.output
+    return result.stdout
+
+
+def test_symbol_units_come_from_the_kind_not_the_first_letter(tmp_path) -> None:
+    out = _symbolic_text(tmp_path, MISLEADING, "misleading.cir")
+    for shown in (
+        "X1.R1 = 1 kΩ",
+        "X1.C1 = 1 µF",
+        "Rload = 10 kΩ",
+        "R2 = 2 kg",
+        "C3 = 50 N/m",
+        "i1 = 500 mN·s/m",
+        "L2 = -3 N·s/m",
+    ):
+        assert shown in out, (shown, out)
+    assert "q(X1.C1) [C], p(R2) [kg·m/s], f(C3) [N]" in out
+    doc = json.loads(
+        CliRunner()
+        .invoke(main, ["analyze", str(tmp_path / "misleading.cir"), "--symbolic", "--format", "json"])
+        .stdout
+    )
+    assert doc["symbolic"]["symbol_units"] == {
+        "X1_R1_": "Ω",
+        "X1_C1_": "F",
+        "Rload": "Ω",
+        "R2": "kg",
+        "C3": "N/m",
+        "i1": "N·s/m",
+        "L2": "N·s/m",
+    }
+
+
+def test_linearised_torque_named_r1_is_a_stiffness_in_newton_metres_per_radian(tmp_path) -> None:
+    out = _symbolic_text(tmp_path, TORQUE_R1, "torque_r1.cir")
+    # d(-m g l sin x)/dx at x = 0 is -m g l = -9.81 N·m/rad; the bob's inertia m l² = 0.5 kg·m²
+    assert "r1 = -9.81 N·m/rad" in out and "R2 = -50 mN·m·s/rad" in out and "bob = 0.5 kg·m²" in out
+    assert "p(bob) [kg·m²/s], x(bob) [rad]" in out
+
+
+def test_controlled_source_gains_and_torsional_springs_in_their_units(tmp_path) -> None:
+    out = _symbolic_text(tmp_path, (NETLISTS / "controlled.cir").read_text(), "controlled.cir")
+    for shown in ("E1 = 2 V/V", "G1 = 1 mA/V", "F1 = 2 A/A", "H1 = 100 V/A", "K1 = 500m,", "L1 = 10 mH"):
+        assert shown in out, (shown, out)
+    out = _symbolic_text(tmp_path, (NETLISTS / "servo_shaft.cir").read_text(), "servo.cir")
+    for shown in ("K = 500 N·m/rad", "Jm = 0.0008 kg·m²", "motor = 50 mN·m/A", "gear = 12,", "f(K) [N·m]"):
+        assert shown in out, (shown, out)
