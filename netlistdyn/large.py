@@ -153,10 +153,7 @@ def simulate_large(
         scheme = f"CF rational of degree {CF_DEGREE} on (-inf, 0], checked against degree {CF_CHECK_DEGREE}"
     else:
         scheme = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
-    if "pade_from" in run.stats:
-        pade = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
-        scheme += f" ({pade} from t = {run.stats['pade_from']:g} s, where CF's check failed)"
-    elif run.stats.get("fallback_steps"):
+    if run.stats.get("fallback_steps"):
         pade = f"Padé [{DEFAULT_ORDER - 1}/{DEFAULT_ORDER}]"
         scheme += f" ({pade} from the first step where CF's check failed and Padé's passed)"
     stats = {**run.stats, "cpu_seconds": cpu, "unknowns": system.size}

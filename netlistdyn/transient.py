@@ -21,7 +21,8 @@ Time stepping (``descriptor``)
     (k = 12: order 23), accurate only for small ``|hλ|``, in product form
     ``c + 2·Re(α (hM − p)⁻¹)`` per conjugate pole pair. ``auto`` (the
     default): CF, and Padé from the first step where CF's check fails and
-    Padé's passes (modes off the real axis that Padé resolves). Either
+    Padé's passes (modes off the real axis that Padé resolves); an explicit
+    ``cf`` never switches (see :func:`run_transient`). Either
     way ``(hM − p)⁻¹ y = (hA − pE)⁻¹ E y`` needs no inverse of the singular
     ``E``, and, both approximants being strictly proper, the algebraic
     unknowns (nodes without a capacitor, source currents) come out
@@ -497,6 +498,10 @@ def run_transient(
         ``pade``: the [order−1/order] Padé approximant, checked as above;
         ``auto``: CF until a CF check fails where the same step with Padé
         passes Padé's own check; Padé from there on (checked as ``pade``).
+        That is the only switch between methods: an explicit ``cf`` (or
+        ``pade``) whose check fails down to steps of 2^-:data:`MAX_LEVEL` of
+        an interval stops there with ``status`` "failed" and a message
+        naming the time (for ``cf``, suggesting ``auto`` or ``pade``).
 
     Returns
     -------
@@ -550,22 +555,9 @@ def run_transient(
             try:
                 for j in range(pieces.size - 1):
                     check = at_break if j == 0 else True
-                    t_j, t_next = float(pieces[j]), float(pieces[j + 1])
-                    try:
-                        x = _piece(x, t_j, t_next, check, values, steppers, stats, ctl)
-                    except _CheckFailed:
-                        if steppers.method != "cf":
-                            raise
-                        # CF's partial fractions carry a rounding floor (large residues) that
-                        # shorter steps do not lower; off the real axis (inductors) a tight rtol
-                        # can sit below it. Padé's product form converges as the step shrinks:
-                        # the rest of the run uses it, from this piece's start.
-                        steppers = _Steppers(system, order, stats, "pade")
-                        stats["pade_from"] = t_j
-                        x = _piece(x, t_j, t_next, True, values, steppers, stats, ctl)
+                    x = _piece(x, float(pieces[j]), float(pieces[j + 1]), check, values, steppers, stats, ctl)
             except _CheckFailed as exc:
-                status = "failed"
-                message = f"step check failing with steps of 2^-{MAX_LEVEL} of an interval at t = {exc} s"
+                status, message = "failed", _failure(method, float(exc.args[0]), rtol)
                 break
             jump = False
             out[k] = system.C @ x + system.D @ values(t_b)
@@ -716,6 +708,22 @@ def _piece(
 
 class _CheckFailed(Exception):
     """The step check kept failing down to the shortest step allowed."""
+
+
+def _failure(method: str, t: float, rtol: float) -> str:
+    """The one-line message of a run whose step check failed down to 2^-MAX_LEVEL of an interval.
+
+    An explicitly chosen ``cf`` is not switched to Padé behind the user's back
+    (as ngspice's ``method=gear`` stops with "timestep too small" rather than
+    going on with trap): the message says where and what to use instead.
+    """
+    where = f"at t = {t:.9g} s, down to steps of 2^-{MAX_LEVEL} of an interval"
+    if method == "cf":
+        return (
+            f"CF's step check fails {where} (its rounding floor there is above rtol {rtol:g}): "
+            "method 'auto' switches to Padé where CF fails, or use 'pade'"
+        )
+    return f"step check failing {where} (rtol {rtol:g})"
 
 
 def _consistent(

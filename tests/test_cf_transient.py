@@ -159,3 +159,29 @@ def test_auto_falls_back_to_pade_on_an_unresolved_oscillation() -> None:
     largest = np.abs(exact).max()
     for run in (cf, auto):
         assert np.abs(run.outputs - exact).max() <= 2 * rtol * largest
+
+
+def test_explicit_cf_fails_plainly_where_its_check_cannot_pass() -> None:
+    """An RLC (1 kΩ, 470 nF, 22 mH, 680 Ω) hit by a 10 µs edge at 0.2 ms, at rtol 1e-12: CF's check
+    fails at the edge's end at every step length down to 2^-48 of the interval (its partial
+    fractions' rounding floor; the check's difference grows as the step shrinks). An explicitly
+    chosen ``cf`` stops there with one line naming the time and the methods that do pass, instead
+    of going on with Padé under CF's name; ``auto`` switches at the first failed check and stays
+    within 2·rtol of the largest voltage of the dense exact discretisation (measured: 4.2e-14)."""
+    net = parse_text(
+        "edge\nV1 in 0 PULSE(0 1 0.2m 10u 10u 1 2)\nR1 in a 1k\nC1 a 0 470n\nL1 a c 22m\nR3 c 0 680\n"
+        ".tran 10u 4m\n.end\n"
+    )
+    system = descriptor.assemble(net, ["v(a)", "v(c)"])
+    times = np.linspace(0.0, 4e-3, 401)
+    waves = [source_waveform(e).resolved(1e-5, 4e-3) for e in net.sources]
+    rtol = 1e-12
+    cf = transient.run_transient(system, waves, times, rtol=rtol, method="cf")
+    assert cf.status == "failed"
+    assert "\n" not in cf.message and "t = 0.00020125 s" in cf.message
+    assert "'auto'" in cf.message and "'pade'" in cf.message
+    assert np.isfinite(cf.outputs[:21]).all() and np.isnan(cf.outputs[21:]).all()
+    auto = transient.run_transient(system, waves, times, rtol=rtol, method="auto")
+    assert auto.status == "ok" and auto.stats["fallback_steps"] == 1
+    exact = _exact(system, waves, times)
+    assert np.abs(auto.outputs - exact).max() <= 2 * rtol * np.abs(exact).max()
