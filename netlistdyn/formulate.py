@@ -22,29 +22,30 @@ resistive part) leaves ``M x' = N x + B₀ u + K₀ u'``. An input derivative
 that survives is removed by the change of variable x̃ = x − M⁻¹K₀ u, and
 an output that needs it gets the explicit term ``D1 u'``. Finally capacitor
 voltages are scaled to charges, so the states are the seeds' Q_C and I_L.
+
+That elimination (:func:`reduce`, with the outputs, the displacements that
+springs hold and the ``x(n)`` integrators) is written once, over a matrix
+:class:`~netlistdyn.algebra.Algebra`: sparse floats with rounding-aware
+zero tests and equilibrated LU for the numeric model here, or sympy's
+rational functions for :mod:`netlistdyn.symbolic` on the tree chosen here.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from .algebra import NUMERIC, Algebra, Block, NotSupportedError, _clean
 from .errors import NetlistError, SingularCircuitError, SourceLocation, TopologyError, UsageError
 from .graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
 from .mechanics import DISPLACEMENT_KEYWORD, state_prefix
 from .model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceModel
 from .netlist import GROUND, Diagnostic, Element, Kind, Netlist
 from .probes import Probe, default_probes, parse_probe
-
-#: A factorisation whose pivots span more than this ratio is treated as singular.
-SINGULAR_RCOND = 1e-14
 
 
 @dataclass(frozen=True)
@@ -58,32 +59,18 @@ class Classes:
     source_input: np.ndarray  # for each s branch, its input column
 
 
-class NotSupportedError(NetlistError):
-    """The circuit needs a formulation this compiler does not have (higher index)."""
-
-
-@dataclass(frozen=True)
-class _Block:
-    """Rows of equations after eliminating s and d: coefficients of x, y, x', y', u, u'."""
-
-    x: sp.csr_array
-    y: sp.csr_array
-    dx: sp.csr_array
-    dy: sp.csr_array
-    u: sp.csr_array
-    du: sp.csr_array
-
-
 @dataclass(frozen=True)
 class _Equations:
-    """The descriptor system G w + E w' + F u = 0 with maps from primaries to branch quantities."""
+    """The descriptor system G w + E w' + F u = 0 with maps from primaries to branch quantities.
 
-    G: sp.csr_array
-    E: sp.csr_array
-    F: sp.csr_array
-    vmap: sp.csr_array  # branch voltages from primaries
-    imap: sp.csr_array  # branch currents from primaries
-    G_data: sp.csr_array  # the element-value part of G (G minus the topology's ±1)
+    Matrices of an :class:`~netlistdyn.algebra.Algebra` (sparse floats or sympy).
+    """
+
+    G: Any
+    E: Any
+    F: Any
+    vmap: Any  # branch voltages from primaries
+    imap: Any  # branch currents from primaries
 
 
 @dataclass(frozen=True)
@@ -169,44 +156,36 @@ def _compile_on_tree(
     netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit, probes: Sequence[Probe]
 ) -> StateSpaceModel:
     check_sources(circuit, tree)
-    equations = assemble(netlist, circuit, tree)
-    classes = classify(circuit, tree, netlist)
-    held = held_displacements(netlist, probes)
-    if not held:
-        model = reduce_to_state_space(netlist, circuit, tree, equations, classes, probes)
-        return add_displacements(model, probes)
-    # Positions that springs hold are sums of spring fluxes (L·i + Σ M·i): computed from the
-    # currents of the inductors on the path, which are appended as hidden outputs.
-    keys = sorted({key for _, path in held.values() for key, _ in path} | _partners(netlist, held))
-    hidden = tuple(Probe("i", f"i({key})", element=key) for key in keys)
-    full = reduce_to_state_space(netlist, circuit, tree, equations, classes, (*probes, *hidden))
-    rows = _flux_rows(netlist, full, len(probes), keys, held)
-    p = len(probes)
-    model = StateSpaceModel(
-        full.A_sparse,
-        full.B_sparse,
-        _replace_rows(full.C_sparse, rows[0], p),
-        _replace_rows(full.D_sparse, rows[1], p),
-        _replace_rows(full.D1_sparse, rows[2], p),
-        full.states,
-        full.inputs,
-        full.outputs[:p],
-        full.title,
-        full.info,
-        pencil=full.pencil,
+    reduced = reduce(NUMERIC, NUMERIC_VALUES, netlist, circuit, tree, probes)
+    classes, equations = reduced.classes, reduced.equations
+    nx_ = len(classes.x)
+    states = tuple(state_name(circuit.branches[k].element) for k in classes.x)
+    inputs = tuple(e.name for e in netlist.sources)
+    info = CompileInfo(
+        order=nx_,
+        tree=tuple(b.label for b in circuit.branches if tree.in_tree[b.index]),
+        excess=_excess(circuit, tree, classes),
+        shifts=_shifts(reduced.K, states, inputs),
+        warnings=netlist.warnings + check_couplings(netlist),
+        integrators=reduced.integrators,
+        passive=is_passive(netlist) and not check_couplings(netlist),
     )
-    unheld = [Probe("v", pr.name, pr.nodes) if j in held else pr for j, pr in enumerate(probes)]
-    model = add_displacements(model, unheld)
-    based = {j: base for j, (base, _) in held.items() if base is not None}
-    if not based:
-        return model
-    # x(a) = x(c) + (x(a) − x(c)): a position in a free chain of springs is another's plus fluxes.
-    C, D, D1 = (sp.lil_array(m) for m in (model.C_sparse, model.D_sparse, model.D1_sparse))
-    for j, base in based.items():
-        for matrix in (C, D, D1):
-            matrix[[j], :] = matrix[[j], :].toarray() + matrix[[base], :].toarray()
-    return replace(
-        model, C_sparse=_clean(C.tocsr()), D_sparse=_clean(D.tocsr()), D1_sparse=_clean(D1.tocsr())
+    # The same laws with every element value set to 0 leave the topology's ±1: the rest of G
+    # is made of element values (R, gains, turns ratios), the part a value's rounding perturbs.
+    structure = branch_laws(netlist, circuit, lambda e: 0.0, lambda *_: 0.0)
+    G_topology, _ = _law_matrices(NUMERIC, structure, tree, equations.vmap, equations.imap)
+    return StateSpaceModel(
+        reduced.A,
+        reduced.B,
+        reduced.C,
+        reduced.D,
+        reduced.D1,
+        (*states, *reduced.integrators),
+        inputs,
+        tuple(p.name for p in probes),
+        netlist.title,
+        info,
+        pencil=Pencil(equations.G, equations.E, nx_, _clean(equations.G - G_topology)),
     )
 
 
@@ -270,57 +249,6 @@ def held_displacements(
             else:
                 bases[root] = j
     return held
-
-
-def _partners(netlist: Netlist, held: dict[int, tuple[int | None, list[tuple[str, int]]]]) -> set[str]:
-    """Inductors coupled to those on a held path (their currents enter the flux)."""
-    on_path = {key for _, path in held.values() for key, _ in path}
-    out: set[str] = set()
-    for e in netlist.elements:
-        if e.kind is Kind.COUPLING and e.coupled is not None and set(e.coupled) & on_path:
-            out |= set(e.coupled)
-    return out
-
-
-def _flux_rows(
-    netlist: Netlist,
-    full: StateSpaceModel,
-    p: int,
-    keys: list[str],
-    held: dict[int, tuple[int | None, list[tuple[str, int]]]],
-) -> tuple[dict[int, sp.csr_array], dict[int, sp.csr_array], dict[int, sp.csr_array]]:
-    """Rows of C, D, D1 for each held displacement: Σ sign·(L·i + Σ M·i_other) over its path."""
-    column = {key: p + k for k, key in enumerate(keys)}
-    by_key = {e.key: e for e in netlist.elements}
-    mutual: dict[str, list[tuple[str, float]]] = {}
-    for e in netlist.elements:
-        if e.kind is Kind.COUPLING and e.coupled is not None:
-            a, b = e.coupled
-            m = _numeric_mutual(e, by_key[a], by_key[b])
-            mutual.setdefault(a, []).append((b, m))
-            mutual.setdefault(b, []).append((a, m))
-    out: tuple[dict[int, sp.csr_array], ...] = ({}, {}, {})
-    for j, (_, path) in held.items():
-        weights: dict[str, float] = {}
-        for key, sign in path:
-            weights[key] = weights.get(key, 0.0) + sign * by_key[key].value
-            for other, m in mutual.get(key, ()):
-                weights[other] = weights.get(other, 0.0) + sign * m
-        select = sp.csr_array(
-            (list(weights.values()), ([0] * len(weights), [column[k] for k in weights])),
-            shape=(1, full.noutputs),
-        )
-        for target, matrix in zip(out, (full.C_sparse, full.D_sparse, full.D1_sparse), strict=True):
-            target[j] = sp.csr_array(select @ matrix)
-    return out  # type: ignore[return-value]
-
-
-def _replace_rows(matrix: sp.csr_array, rows: dict[int, sp.csr_array], p: int) -> sp.csr_array:
-    """The first p rows of matrix, with the given rows replaced."""
-    lil = sp.lil_array(matrix[:p, :])
-    for j, row in rows.items():
-        lil[[j], :] = row.toarray()
-    return _clean(lil.tocsr())
 
 
 def recompile(formulation: Formulation, netlist: Netlist) -> StateSpaceModel:
@@ -654,13 +582,6 @@ def check_couplings(netlist: Netlist) -> tuple[Diagnostic, ...]:
     return tuple(found)
 
 
-def _triplets(entries: list[tuple[int, int, Any]], shape: tuple[int, int]) -> sp.csr_array:
-    if not entries:
-        return sp.csr_array(shape)
-    rows, cols, vals = zip(*entries, strict=True)
-    return sp.csr_array((np.asarray(vals, dtype=float), (rows, cols)), shape=shape)
-
-
 def _potential_rows(tree: TreeSplit, pairs: Sequence[tuple[str, str]], n: int) -> sp.csr_array:
     """Rows v(a) − v(b) over the primaries, one per (a, b) pair."""
     rows, cols, vals = [], [], []
@@ -685,7 +606,9 @@ def primary_maps(tree: TreeSplit) -> tuple[sp.csr_array, sp.csr_array]:
     return (tree_diag + tree.loops).tocsr(), (link_diag - tree.loops.T).tocsr()
 
 
-def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equations:
+def assemble(
+    netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit, algebra: Algebra, values: ElementValues
+) -> _Equations:
     """Write one constitutive equation per branch over the primary unknowns.
 
     Parameters
@@ -693,6 +616,10 @@ def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equat
     netlist : Netlist
     circuit : CircuitGraph
     tree : TreeSplit
+    algebra : Algebra
+        The matrix type (sparse floats, or sympy for :mod:`netlistdyn.symbolic`).
+    values : ElementValues
+        The element values in that algebra.
 
     Returns
     -------
@@ -701,31 +628,28 @@ def assemble(netlist: Netlist, circuit: CircuitGraph, tree: TreeSplit) -> _Equat
         voltage and current from ``w``.
     """
     n = circuit.nbranches
-    vmap, imap = primary_maps(tree)
-    laws = branch_laws(netlist, circuit, lambda e: e.value, _numeric_mutual)
-    G, E = _law_matrices(laws, tree, vmap, imap)
-    # The same laws with every element value set to 0 leave the topology's ±1: the rest of G
-    # is made of element values (R, gains, turns ratios), the part a value's rounding perturbs.
-    structure = branch_laws(netlist, circuit, lambda e: 0.0, lambda *_: 0.0)
-    G_topology, _ = _law_matrices(structure, tree, vmap, imap)
-    F = _triplets(laws.u, (n, len(netlist.sources)))
-    return _Equations(_clean(G), _clean(E), F, vmap, imap, _clean(G - G_topology))
+    vmap_topology, imap_topology = primary_maps(tree)
+    vmap, imap = algebra.topology(vmap_topology), algebra.topology(imap_topology)
+    laws = branch_laws(netlist, circuit, values.value, values.mutual)
+    G, E = _law_matrices(algebra, laws, tree, vmap, imap)
+    F = algebra.triplets(laws.u, (n, len(netlist.sources)))
+    return _Equations(algebra.clean(G), algebra.clean(E), F, vmap, imap)
 
 
 def _law_matrices(
-    laws: BranchLaws, tree: TreeSplit, vmap: sp.csr_array, imap: sp.csr_array
-) -> tuple[sp.csr_array, sp.csr_array]:
+    algebra: Algebra, laws: BranchLaws, tree: TreeSplit, vmap: Any, imap: Any
+) -> tuple[Any, Any]:
     """G and E of ``G w + E w' + F u = 0`` from the branch laws and the primary maps."""
     n = vmap.shape[0]
-    G = _triplets(laws.v, (n, n)) @ vmap + _triplets(laws.i, (n, n)) @ imap
+    G = algebra.triplets(laws.v, (n, n)) @ vmap + algebra.triplets(laws.i, (n, n)) @ imap
     if laws.control:
-        ctrl = _potential_rows(tree, [pair for _, pair, _ in laws.control], n)
-        place = _triplets(
+        ctrl = algebra.topology(_potential_rows(tree, [pair for _, pair, _ in laws.control], n))
+        place = algebra.triplets(
             [(row, j, gain) for j, (row, _, gain) in enumerate(laws.control)], (n, len(laws.control))
         )
         G = G + place @ ctrl
-    E = _triplets(laws.dv, (n, n)) @ vmap + _triplets(laws.di, (n, n)) @ imap
-    return sp.csr_array(G), sp.csr_array(E)
+    E = algebra.triplets(laws.dv, (n, n)) @ vmap + algebra.triplets(laws.di, (n, n)) @ imap
+    return G, E
 
 
 def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classes:
@@ -749,35 +673,177 @@ def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classe
     return Classes(as_array(x_caps + x_inds), as_array(s), as_array(d), as_array(y), as_array(source_input))
 
 
-def _clean(matrix: sp.sparray) -> sp.csr_array:
-    """CSR copy without explicit zeros.
+@dataclass(frozen=True)
+class ElementValues:
+    """Element values as coefficients of an algebra: floats, or sympy expressions of symbols.
 
-    Only exact zeros go: element values span many decades (1 fF beside
-    1 kH), so no threshold relative to a matrix's largest entry can tell a
-    small coefficient from rounding noise, and dropping a real one would
-    silently change the model.
+    Attributes
+    ----------
+    value : callable
+        ``value(element)``: R (Ω), C (F), L (H), a gain or turns ratio.
+    mutual : callable
+        ``mutual(coupling, L_a, L_b)``: mutual inductance (H) of a ``K`` element.
+    rod_length : callable
+        ``rod_length(rod)``: length (m) of a pendulum ``ROD``.
     """
-    out = sp.csr_array(matrix, dtype=float)
-    out.eliminate_zeros()
-    return out
+
+    value: Callable[[Element], Any]
+    mutual: Callable[[Element, Element, Element], Any]
+    rod_length: Callable[[Element], Any]
 
 
-def _cols(matrix: sp.csr_array, index: np.ndarray) -> sp.csr_array:
-    return sp.csr_array(matrix[:, index]) if len(index) else sp.csr_array((matrix.shape[0], 0))
+def _rod_length(rod: Element) -> float:
+    assert rod.rod is not None
+    return rod.rod.length
 
 
-def _rows(matrix: sp.csr_array, index: np.ndarray) -> sp.csr_array:
-    return sp.csr_array(matrix[index, :]) if len(index) else sp.csr_array((0, matrix.shape[1]))
+#: The netlist's own values, as floats.
+NUMERIC_VALUES = ElementValues(lambda e: e.value, _numeric_mutual, _rod_length)
 
 
-def _eliminate_sources_and_excess(
-    G: sp.csr_array, E: sp.csr_array, F: sp.csr_array, full: _Equations, classes: Classes, m: int
-) -> _Block:
+@dataclass(frozen=True)
+class Reduction:
+    """The state-space matrices a reduction produces, in the matrices of its algebra.
+
+    Attributes
+    ----------
+    A, B, C, D, D1
+        x' = A x + B u, y = C x + D u + D1 u', in the states of ``classes.x``
+        (charges for capacitors, currents for inductors) followed by one
+        integrator per name in ``integrators``.
+    K
+        The input shift: the states are z = x − K u (charge units).
+    integrators : tuple of str
+        The ``x(n)`` outputs that got an integrator state.
+    classes : Classes
+    equations : _Equations
+        The equations the matrices were reduced from.
+    """
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    D1: Any
+    K: Any
+    integrators: tuple[str, ...]
+    classes: Classes
+    equations: _Equations
+
+
+def reduce(
+    algebra: Algebra,
+    values: ElementValues,
+    netlist: Netlist,
+    circuit: CircuitGraph,
+    tree: TreeSplit,
+    probes: Sequence[Probe],
+) -> Reduction:
+    """Eliminate everything but the states on a normal tree and build A, B, C, D, D1.
+
+    The one statement of the algebra in the module docstring, for the
+    numeric compiler (``algebra`` :data:`~netlistdyn.algebra.NUMERIC`,
+    ``values`` :data:`NUMERIC_VALUES`) and the symbolic one
+    (:mod:`netlistdyn.symbolic`, exact rational functions).
+
+    Raises
+    ------
+    SingularCircuitError
+        When the resistive part or the capacitance/inductance matrix is singular.
+    NotSupportedError, OutputDerivativeError
+        When the circuit or an output needs second derivatives on this tree.
+    """
+    m = len(netlist.sources)
+    equations = assemble(netlist, circuit, tree, algebra, values)
+    classes = classify(circuit, tree, netlist)
+    G, E, F = equations.G, equations.E, equations.F
+    involved = _controlled_labels(netlist)
+    where = _first_location(netlist, involved)
+    rows = algebra.rows
+
+    def solve(matrix: Any, rhs: Any, message: str) -> Any:
+        try:
+            return -algebra.solve(matrix, rhs, message)
+        except SingularCircuitError as exc:
+            raise SingularCircuitError(exc.message, where) from None
+
+    yb = _eliminate(
+        algebra, rows(G, classes.y), rows(E, classes.y), rows(F, classes.y), equations, classes, m
+    )
+    if algebra.nonzero(yb.dy):
+        yb = algebra.algebraic_derivatives(yb, involved, netlist)
+    resistive_msg = "the resistive part of the circuit has no unique solution for these values" + (
+        f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
+    )
+    rhs = algebra.hstack([yb.x, yb.dx, yb.u, yb.du])
+    solved = solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else algebra.zeros(0, rhs.shape[1])
+    nx_ = len(classes.x)
+    splits = np.cumsum([nx_, nx_, m])
+    P = algebra.clean(solved[:, : splits[0]])
+    R = algebra.clean(solved[:, splits[0] : splits[1]])
+    Q = algebra.clean(solved[:, splits[1] : splits[2]])
+    S = algebra.clean(solved[:, splits[2] :])
+
+    xb = _eliminate(
+        algebra, rows(G, classes.x), rows(E, classes.x), rows(F, classes.x), equations, classes, m
+    )
+    if not (algebra.negligible(xb.dy, R) and algebra.negligible(xb.dy, S)):
+        raise NotSupportedError(
+            "the circuit needs second derivatives of its variables (higher index); not supported",
+            netlist.elements[0].loc,
+        )
+    mass = algebra.clean(xb.dx + xb.dy @ P + xb.y @ R)
+    n0 = algebra.clean(xb.x + xb.y @ P)
+    nu = algebra.clean(xb.u + xb.y @ Q)
+    nud = algebra.clean(xb.du + xb.dy @ Q + xb.y @ S)
+    mass_msg = (
+        "the capacitance/inductance matrix is singular for these values: the states are not "
+        "independent" + (f" (check {', '.join(involved)})" if involved else " (check negative values)")
+    )
+    solved_x = solve(mass, algebra.hstack([n0, nu, nud]), mass_msg)
+    A = algebra.clean(solved_x[:, :nx_])
+    B = algebra.clean(solved_x[:, nx_ : nx_ + m])
+    K = algebra.clean(solved_x[:, nx_ + m :])
+
+    held = held_displacements(netlist, probes)
+    C, D, D1 = _outputs(
+        algebra, values, probes, held, netlist, circuit, tree, equations, classes, (P, Q, R, S), (A, B, K), m
+    )
+
+    # From x to the shifted state z = x − K u: z' = A z + (B + A K) u, y = C z + (D + C K) u + D1 u'.
+    B_z = algebra.clean(B + A @ K)
+    D_z = algebra.clean(D + C @ K)
+
+    # Capacitor voltages → charges: q = C v.
+    scale = [
+        values.value(circuit.branches[k].element) if circuit.branches[k].element.kind is Kind.CAPACITOR else 1
+        for k in classes.x
+    ]
+    T, T_inv = algebra.diag(scale), algebra.diag(scale, inverse=True)
+    A_q = algebra.clean(T @ A @ T_inv)
+    B_q = algebra.clean(T @ B_z)
+    C_q = algebra.clean(C @ T_inv)
+    K_q = algebra.clean(T @ K)
+    algebra.check_finite(netlist, {"A": A_q, "B": B_q, "C": C_q, "D": D_z, "D1": D1})
+
+    A_q, B_q, C_q, D_z, D1, integrators = _integrate_displacements(
+        algebra, (A_q, B_q, C_q, D_z, D1), probes, held
+    )
+    # x(a) = x(c) + (x(a) − x(c)): a position in a free chain of springs is another's plus fluxes.
+    based = [(j, base, 1) for j, (base, _) in held.items() if base is not None]
+    if based:
+        add = algebra.triplets(based, (len(probes), len(probes)))
+        C_q, D_z, D1 = (algebra.clean(M + add @ M) for M in (C_q, D_z, D1))
+    return Reduction(A_q, B_q, C_q, D_z, D1, K_q, integrators, classes, equations)
+
+
+def _eliminate(algebra: Algebra, G: Any, E: Any, F: Any, full: _Equations, classes: Classes, m: int) -> Block:
     """Substitute source primaries (= inputs) and excess-element primaries (derivatives).
 
     Parameters
     ----------
-    G, E, F : scipy.sparse.csr_array
+    algebra : Algebra
+    G, E, F : matrices
         Rows to transform (coefficients of w, w' and u).
     full : _Equations
         The whole system (for the excess elements' defining rows).
@@ -785,411 +851,149 @@ def _eliminate_sources_and_excess(
     m : int
         Number of inputs.
     """
-    unit = sp.csr_array(
-        (np.ones(len(classes.s)), (np.arange(len(classes.s)), classes.source_input)),
-        shape=(len(classes.s), m),
-    )
-    u = F + _cols(G, classes.s) @ unit
-    du = _cols(E, classes.s) @ unit
-    dx, dy = _cols(E, classes.x), _cols(E, classes.y)
+    cols = algebra.cols
+    unit = algebra.triplets([(r, int(j), 1) for r, j in enumerate(classes.source_input)], (len(classes.s), m))
+    u = F + cols(G, classes.s) @ unit
+    du = cols(E, classes.s) @ unit
+    dx, dy = cols(E, classes.x), cols(E, classes.y)
     if len(classes.d):
         # Excess rows read w_d + E_d w' = 0, so w_d = −E_d w' (never another excess primary).
         # Where a substituted term cancels an existing one, the difference is zero up to rounding:
         # judged against the magnitudes that were added, never against a unit-dependent level.
-        e_d = _rows(full.E, classes.d)
-        g_d = _cols(G, classes.d)
-        e_du = _cols(e_d, classes.s) @ unit
-        dx = _cancelled(dx, g_d, _cols(e_d, classes.x))
-        dy = _cancelled(dy, g_d, _cols(e_d, classes.y))
-        du = _cancelled(du, g_d, e_du)
-    return _Block(_cols(G, classes.x), _cols(G, classes.y), _clean(dx), _clean(dy), _clean(u), _clean(du))
-
-
-#: A sum is exactly zero when it is below this multiple of eps times the sum of its terms' magnitudes.
-CANCELLATION = 16 * float(np.finfo(float).eps)
-
-
-def _cancelled(base: sp.csr_array, left: sp.csr_array, right: sp.csr_array) -> sp.csr_array:
-    """base − left @ right, with entries that cancel to rounding level set to exactly zero."""
-    value = sp.coo_array(sp.csr_array(base - left @ right))
-    if value.nnz == 0:
-        return sp.csr_array(value.shape)
-    bound = sp.csr_array(abs(sp.csr_array(base)) + abs(sp.csr_array(left)) @ abs(sp.csr_array(right)))
-    magnitude = np.asarray(bound[value.row, value.col]).ravel()
-    keep = np.abs(value.data) > CANCELLATION * magnitude
-    return sp.csr_array((value.data[keep], (value.row[keep], value.col[keep])), shape=value.shape)
-
-
-def _negligible(left: sp.csr_array, right: sp.csr_array) -> bool:
-    """True when every entry of left @ right is rounding noise relative to |left| @ |right|.
-
-    ``right`` comes from a sparse solve, so its entries carry relative errors
-    up to about the condition number times eps; a product that cancels to
-    below :data:`PRODUCT_ZERO` of its terms' magnitudes is zero. The test is
-    relative entry by entry, so it does not depend on units.
-    """
-    product = sp.coo_array(sp.csr_array(left @ right))
-    if product.nnz == 0:
-        return True
-    bound = sp.csr_array(abs(sp.csr_array(left)) @ abs(sp.csr_array(right)))
-    magnitude = np.asarray(bound[product.row, product.col]).ravel()
-    return bool(np.all(np.abs(product.data) <= PRODUCT_ZERO * magnitude))
-
-
-#: Relative level below which a product of solved matrices is taken as zero (see _negligible).
-PRODUCT_ZERO = 1e-8
-
-
-#: Largest resistive system for which derivatives of algebraic unknowns are resolved (dense SVD).
-ALGEBRAIC_DERIVATIVE_LIMIT = 3000
-
-
-def _substitute_algebraic_derivatives(yb: _Block, involved: list[str], netlist: Netlist) -> _Block:
-    """Replace derivatives of resistive unknowns that the derivative-free rows fix.
-
-    An excess capacitor in a loop with a controlled voltage-type branch (a
-    VCVS, or a transformer port: rigidly geared inertias) puts the
-    derivative of that branch's voltage into the resistive equations. When
-    the rows without derivatives determine those unknowns from states and
-    inputs alone (y_Z = S_x x + S_u u, checked through the null space), their
-    derivatives are S_x x' + S_u u' and the system stays first order.
-    """
-    dy = yb.dy.tocsc()
-    z = np.flatnonzero(np.diff(dy.indptr))
-    dynamic = (np.diff(yb.dx.indptr) + np.diff(yb.dy.indptr) + np.diff(yb.du.indptr)) > 0
-    rows = np.flatnonzero(~dynamic)
-    n_y = yb.y.shape[1]
-    unsupported = NotSupportedError(
-        "a controlled source or transformer depends on the derivative of a resistive quantity "
-        f"({', '.join(involved) or 'check the controlled sources'}); not supported",
-        netlist.elements[0].loc,
-    )
-    if n_y > ALGEBRAIC_DERIVATIVE_LIMIT or len(rows) == 0:
-        raise unsupported
-    # Judged on the equilibrated rows (every row and column peaking at 1), so that the rank and
-    # residual decisions do not depend on the units of the unknowns.
-    r_scale, c_scale = _equilibrate(sp.csr_array(yb.y.toarray()[rows]))
-    g = r_scale[:, None] * yb.y.toarray()[rows] * c_scale[None, :]
-    rhs = -r_scale[:, None] * np.hstack([yb.x.toarray()[rows], yb.u.toarray()[rows]])
-    scaled_solution, *_ = np.linalg.lstsq(g, rhs, rcond=None)
-    if np.linalg.norm(g @ scaled_solution - rhs) > 1e-9 * max(np.linalg.norm(rhs), 1e-300):
-        raise unsupported
-    kernel = sla.null_space(g, rcond=1e-12) if g.shape[0] else np.eye(n_y)
-    if kernel.size and np.max(np.abs(kernel[z])) > 1e-9:
-        raise unsupported  # the derivative-free rows leave y_Z undetermined
-    solution = c_scale[:, None] * scaled_solution
-    nx_ = yb.x.shape[1]
-    s_x = sp.csr_array(solution[z, :nx_])
-    s_u = sp.csr_array(solution[z, nx_:])
-    dy_z = sp.csr_array(dy[:, z])
-    return _Block(
-        yb.x,
-        yb.y,
-        _clean(yb.dx + dy_z @ s_x),
-        sp.csr_array(yb.dy.shape),
-        yb.u,
-        _clean(yb.du + dy_z @ s_u),
-    )
-
-
-def _equilibrate(matrix: sp.csr_array) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column scalings r, c making every row and column of diag(r)·M·diag(c) peak at 1.
-
-    Element values span many decades (1 fF next to 1 kH): singularity is
-    judged on the equilibrated matrix, as LAPACK's expert drivers do.
-    """
-    abs_m = abs(sp.csr_array(matrix))
-    row_max = abs_m.max(axis=1).toarray().ravel()
-    r = np.where(row_max > 0, 1.0 / np.where(row_max > 0, row_max, 1.0), 1.0)
-    col_max = (sp.diags_array(r) @ abs_m).max(axis=0).toarray().ravel()
-    c = np.where(col_max > 0, 1.0 / np.where(col_max > 0, col_max, 1.0), 1.0)
-    return r, c
-
-
-def _solve(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
-    """matrix⁻¹ rhs for a square sparse matrix, refusing (near-)singular ones.
-
-    The matrix is equilibrated first (rows, then columns, scaled to unit
-    maximum); diagonal matrices are then inverted directly, small ones
-    densely with LAPACK's reciprocal condition estimate, large ones with
-    SuperLU.
-    """
-    n = matrix.shape[0]
-    if n == 0 or rhs.shape[1] == 0:
-        return sp.csr_array((n, rhs.shape[1]))
-    r, c = _equilibrate(matrix)
-    scaled = sp.csr_array(sp.diags_array(r) @ matrix @ sp.diags_array(c))
-    rhs_scaled = sp.csr_array(sp.diags_array(r) @ rhs)
-    return _clean(sp.diags_array(c) @ _solve_equilibrated(scaled, rhs_scaled, what))
-
-
-def _solve_equilibrated(matrix: sp.csr_array, rhs: sp.csr_array, what: str) -> sp.csr_array:
-    n = matrix.shape[0]
-    coo = matrix.tocoo()
-    if np.all(coo.row == coo.col) and coo.nnz == n:
-        diag = matrix.diagonal()
-        if np.min(np.abs(diag)) <= SINGULAR_RCOND * np.max(np.abs(diag)):
-            raise SingularCircuitError(what)
-        return _clean(sp.diags_array(1.0 / diag) @ rhs)
-    if n <= 1500:
-        dense = matrix.toarray()
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", sla.LinAlgWarning)
-            try:
-                lu = sla.lu_factor(dense)
-            except (sla.LinAlgError, sla.LinAlgWarning, ValueError):
-                raise SingularCircuitError(what) from None
-        rcond = _rcond(dense, lu)
-        if rcond < SINGULAR_RCOND:
-            raise SingularCircuitError(what)
-        return _clean(sp.csr_array(sla.lu_solve(lu, rhs.toarray())))
-    try:
-        lu_sparse = spla.splu(sp.csc_matrix(matrix))
-    except RuntimeError:
-        raise SingularCircuitError(what) from None
-    pivots = np.abs(lu_sparse.U.diagonal())
-    if pivots.min() <= SINGULAR_RCOND * pivots.max():
-        raise SingularCircuitError(what)
-    rhs_csc = sp.csc_array(rhs)
-    nonzero_cols = np.flatnonzero(np.diff(rhs_csc.indptr))
-    result = sp.lil_array((n, rhs.shape[1]))
-    for start in range(0, len(nonzero_cols), 256):
-        cols = nonzero_cols[start : start + 256]
-        result[:, cols] = lu_sparse.solve(rhs_csc[:, cols].toarray())
-    return _clean(result)
-
-
-def _rcond(dense: np.ndarray, lu: tuple[np.ndarray, np.ndarray]) -> float:
-    anorm = np.linalg.norm(dense, 1)
-    if anorm == 0:
-        return 0.0
-    (gecon,) = sla.get_lapack_funcs(("gecon",), (lu[0],))
-    rcond, _ = gecon(lu[0], anorm, norm="1")
-    return float(rcond)
-
-
-def reduce_to_state_space(
-    netlist: Netlist,
-    circuit: CircuitGraph,
-    tree: TreeSplit,
-    equations: _Equations,
-    classes: Classes,
-    probes: Sequence[Probe],
-) -> StateSpaceModel:
-    """Eliminate everything but the states and build A, B, C, D, D1.
-
-    See the module docstring for the algebra.
-    """
-    m = len(netlist.sources)
-    G, E, F = equations.G, equations.E, equations.F
-    involved = _controlled_labels(netlist)
-
-    yb = _eliminate_sources_and_excess(
-        _rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y), equations, classes, m
-    )
-    if yb.dy.nnz:
-        yb = _substitute_algebraic_derivatives(yb, involved, netlist)
-    resistive_msg = "the resistive part of the circuit has no unique solution for these values" + (
-        f" (check {', '.join(involved)})" if involved else " (check negative resistances)"
-    )
-    rhs = sp.hstack([yb.x, yb.dx, yb.u, yb.du], format="csr")
-    where = _first_location(netlist, involved)
-    try:
-        solved = -_solve(yb.y, rhs, resistive_msg) if yb.y.shape[0] else sp.csr_array((0, rhs.shape[1]))
-    except SingularCircuitError as exc:
-        raise SingularCircuitError(exc.message, where) from None
-    nx_ = len(classes.x)
-    splits = np.cumsum([nx_, nx_, m])
-    P = _clean(solved[:, : splits[0]])
-    R = _clean(solved[:, splits[0] : splits[1]])
-    Q = _clean(solved[:, splits[1] : splits[2]])
-    S = _clean(solved[:, splits[2] :])
-
-    xb = _eliminate_sources_and_excess(
-        _rows(G, classes.x), _rows(E, classes.x), _rows(F, classes.x), equations, classes, m
-    )
-    if not (_negligible(xb.dy, R) and _negligible(xb.dy, S)):
-        raise NotSupportedError(
-            "the circuit needs second derivatives of its variables (higher index); not supported",
-            netlist.elements[0].loc,
-        )
-    mass = _clean(xb.dx + xb.dy @ P + xb.y @ R)
-    n0 = _clean(xb.x + xb.y @ P)
-    nu = _clean(xb.u + xb.y @ Q)
-    nud = _clean(xb.du + xb.dy @ Q + xb.y @ S)
-    mass_msg = (
-        "the capacitance/inductance matrix is singular for these values: the states are not "
-        "independent" + (f" (check {', '.join(involved)})" if involved else " (check negative values)")
-    )
-    try:
-        solved_x = -_solve(mass, sp.hstack([n0, nu, nud], format="csr"), mass_msg)
-    except SingularCircuitError as exc:
-        raise SingularCircuitError(exc.message, where) from None
-    A = _clean(solved_x[:, :nx_])
-    B = _clean(solved_x[:, nx_ : nx_ + m])
-    K = _clean(solved_x[:, nx_ + m :])
-
-    C, D, D1 = _outputs(probes, netlist, circuit, tree, equations, classes, (P, Q, R, S), (A, B, K), m)
-
-    # From x to the shifted state z = x − K u: z' = A z + (B + A K) u, y = C z + (D + C K) u + D1 u'.
-    B_z = _clean(B + A @ K)
-    D_z = _clean(D + C @ K)
-
-    # Capacitor voltages → charges: q = C v.
-    scale_vec = np.array(
-        [
-            circuit.branches[k].element.value if circuit.branches[k].element.kind is Kind.CAPACITOR else 1.0
-            for k in classes.x
-        ]
-    )
-    T = sp.diags_array(scale_vec)
-    T_inv = sp.diags_array(1.0 / scale_vec) if nx_ else sp.csr_array((0, 0))
-    A_q = _clean(T @ A @ T_inv)
-    B_q = _clean(T @ B_z)
-    C_q = _clean(C @ T_inv)
-    K_q = _clean(T @ K)
-
-    _check_finite(netlist, {"A": A_q, "B": B_q, "C": C_q, "D": D_z, "D1": D1})
-    states = tuple(state_name(circuit.branches[k].element) for k in classes.x)
-    inputs = tuple(e.name for e in netlist.sources)
-    info = CompileInfo(
-        order=nx_,
-        tree=tuple(b.label for b in circuit.branches if tree.in_tree[b.index]),
-        excess=_excess(circuit, tree, classes),
-        shifts=_shifts(K_q, states, inputs),
-        warnings=netlist.warnings + check_couplings(netlist),
-        passive=is_passive(netlist) and not check_couplings(netlist),
-    )
-    return StateSpaceModel(
-        sp.csr_array(A_q),
-        sp.csr_array(B_q),
-        sp.csr_array(C_q),
-        sp.csr_array(D_z),
-        sp.csr_array(D1),
-        states,
-        inputs,
-        tuple(p.name for p in probes),
-        netlist.title,
-        info,
-        pencil=Pencil(G, E, nx_, equations.G_data),
-    )
-
-
-def _check_finite(netlist: Netlist, matrices: dict[str, sp.csr_array]) -> None:
-    """Refuse a model with overflowed (infinite or NaN) entries, naming the most extreme value.
-
-    Element values near the ends of double precision (1e-308 Ω) make
-    products such as 1/(R·C) overflow; a model holding ``inf`` would be
-    a wrong number, not a model.
-    """
-    bad = [name for name, m in matrices.items() if m.nnz and not np.all(np.isfinite(m.data))]
-    if not bad:
-        return
-    valued = [e for e in netlist.elements if e.value != 0 and np.isfinite(e.value)]
-    worst = max(valued, key=lambda e: abs(np.log10(abs(e.value))), default=netlist.elements[0])
-    raise NetlistError(
-        f"{worst.label}: value {worst.value:g} overflows double precision in the model "
-        f"({', '.join(bad)} would hold infinite entries); use values within about 1e-150…1e150",
-        worst.loc,
-    )
+        e_d = algebra.rows(full.E, classes.d)
+        g_d = cols(G, classes.d)
+        e_du = cols(e_d, classes.s) @ unit
+        dx = algebra.cancelled(dx, g_d, cols(e_d, classes.x))
+        dy = algebra.cancelled(dy, g_d, cols(e_d, classes.y))
+        du = algebra.cancelled(du, g_d, e_du)
+    clean = algebra.clean
+    return Block(cols(G, classes.x), cols(G, classes.y), clean(dx), clean(dy), clean(u), clean(du))
 
 
 def _outputs(
+    algebra: Algebra,
+    values: ElementValues,
     probes: Sequence[Probe],
+    held: dict[int, tuple[int | None, list[tuple[str, int]]]],
     netlist: Netlist,
     circuit: CircuitGraph,
     tree: TreeSplit,
     equations: _Equations,
     classes: Classes,
-    y_solution: tuple[sp.csr_array, ...],
-    state_solution: tuple[sp.csr_array, ...],
+    y_solution: tuple[Any, ...],
+    state_solution: tuple[Any, ...],
     m: int,
-) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
-    """C, D, D1 in the unshifted voltage/current states x (see reduce_to_state_space)."""
+) -> tuple[Any, Any, Any]:
+    """C, D, D1 in the unshifted voltage/current states x (see :func:`reduce`).
+
+    A displacement ``x(a, b)`` that springs hold (see :func:`held_displacements`)
+    is the sum of the fluxes L·i + Σ M·i_other on its path; another ``x(n)``
+    is its velocity ``v(n)`` here, integrated by :func:`_integrate_displacements`.
+    """
     P, Q, R, S = y_solution
     A, B, K = state_solution
-    n = circuit.nbranches
+    n, p = circuit.nbranches, len(probes)
     if not probes:
-        empty = sp.csr_array((0, len(classes.x)))
-        return empty, sp.csr_array((0, m)), sp.csr_array((0, m))
-    # Voltage-type outputs in one sparse matrix (one per probe is slow for thousands of nodes).
-    across = [j for j, p in enumerate(probes) if p.kind in ("v", "x")]  # x(n) integrated later
-    potentials = _potential_rows(tree, [probes[j].nodes for j in across], n)
-    place = sp.csr_array(
-        (np.ones(len(across)), (across, range(len(across)))), shape=(len(probes), len(across))
-    )
-    c_w = sp.csr_array(place @ potentials)
-    through = [j for j, p in enumerate(probes) if p.kind not in ("v", "x")]
-    if through:
-        key_branch: dict[str, int] = {}
-        for b in circuit.branches:  # a two-port's current is its first port's
-            key_branch.setdefault(b.element.key, b.index)
-        scale = np.ones(len(through))
-        for r, j in enumerate(through):
-            if probes[j].kind == "angle":
-                # i = k (x_pivot − x_bob) with L = 1/k, so angle = (x_bob − x_pivot)/l = −L i / l.
-                rod = circuit.branches[key_branch[probes[j].element]].element
-                assert rod.rod is not None
-                scale[r] = -rod.value / rod.rod.length
-        picks = [key_branch[probes[j].element] for j in through]
-        currents = sp.diags_array(scale) @ sp.csr_array(equations.imap[picks, :])
-        place = sp.csr_array(
-            (np.ones(len(through)), (through, range(len(through)))), shape=(len(probes), len(through))
-        )
-        c_w = sp.csr_array(c_w + place @ currents)
-    zeros_e = sp.csr_array(c_w.shape)
-    block = _eliminate_sources_and_excess(c_w, zeros_e, sp.csr_array((len(probes), m)), equations, classes, m)
+        return algebra.zeros(0, len(classes.x)), algebra.zeros(0, m), algebra.zeros(0, m)
+    # Output rows over the primaries, in one sparse product each (one per probe is slow for
+    # thousands of nodes): node potentials, then branch currents with their weights.
+    across = [j for j, pr in enumerate(probes) if pr.kind in ("v", "x") and j not in held]
+    potentials = algebra.topology(_potential_rows(tree, [probes[j].nodes for j in across], n))
+    place = algebra.triplets([(j, r, 1) for r, j in enumerate(across)], (p, len(across)))
+    c_w = place @ potentials
+    weights = _current_weights(values, probes, held, netlist, circuit)
+    if weights:
+        c_w = c_w + algebra.triplets(weights, (p, n)) @ equations.imap
+    block = _eliminate(algebra, c_w, algebra.zeros(p, n), algebra.zeros(p, m), equations, classes, m)
     c_x = block.x + block.y @ P
     c_dx = block.dx + block.y @ R
     c_u = block.u + block.y @ Q
     c_du = block.du + block.y @ S
-    if block.dy.nnz:
-        if not (_negligible(block.dy, R) and _negligible(block.dy, S)):
+    if algebra.nonzero(block.dy):  # y' = P x' + Q u' + R x'' + S u'': R and S must not be reached
+        if not (algebra.negligible(block.dy, R) and algebra.negligible(block.dy, S)):
             raise OutputDerivativeError(
                 "an output needs second derivatives of the circuit variables; not supported"
             )
         c_dx = c_dx + block.dy @ P
         c_du = c_du + block.dy @ Q
-    C = _clean(c_x + c_dx @ A)
-    D = _clean(c_u + c_dx @ B)
-    D1 = _clean(c_du + c_dx @ K)
+    C = algebra.clean(c_x + c_dx @ A)
+    D = algebra.clean(c_u + c_dx @ B)
+    D1 = algebra.clean(c_du + c_dx @ K)
     return C, D, D1
 
 
-def add_displacements(model: StateSpaceModel, probes: Sequence[Probe]) -> StateSpaceModel:
-    """Integrate the velocity rows of ``x(...)`` outputs into displacement states.
+def _current_weights(
+    values: ElementValues,
+    probes: Sequence[Probe],
+    held: dict[int, tuple[int | None, list[tuple[str, int]]]],
+    netlist: Netlist,
+    circuit: CircuitGraph,
+) -> list[tuple[int, int, Any]]:
+    """``(probe, branch, weight)``: the outputs that are weighted sums of branch currents.
+
+    ``i(X)`` (a two-port's first port), ``angle(rod)`` = −L·i/l (i = k·(x_pivot − x_bob)
+    with L = 1/k), and each held displacement: Σ sign·(L·i + Σ M·i_other) over its path.
+    """
+    key_branch: dict[str, int] = {}
+    for b in circuit.branches:  # a two-port's current is its first port's
+        key_branch.setdefault(b.element.key, b.index)
+    by_key = {e.key: e for e in netlist.elements}
+    mutual: dict[str, list[tuple[str, Any]]] = {}
+    if held:
+        for e in netlist.elements:
+            if e.kind is Kind.COUPLING and e.coupled is not None:
+                a, b = e.coupled
+                m_ab = values.mutual(e, by_key[a], by_key[b])
+                mutual.setdefault(a, []).append((b, m_ab))
+                mutual.setdefault(b, []).append((a, m_ab))
+    out: list[tuple[int, int, Any]] = []
+    for j, probe in enumerate(probes):
+        if j in held:
+            for key, sign in held[j][1]:
+                out.append((j, key_branch[key], sign * values.value(by_key[key])))
+                out.extend((j, key_branch[other], sign * m_ab) for other, m_ab in mutual.get(key, ()))
+        elif probe.kind not in ("v", "x"):
+            weight: Any = 1
+            if probe.kind == "angle":
+                rod = circuit.branches[key_branch[probe.element]].element
+                weight = -values.value(rod) / values.rod_length(rod)
+            out.append((j, key_branch[probe.element], weight))
+    return out
+
+
+def _integrate_displacements(
+    algebra: Algebra,
+    matrices: tuple[Any, Any, Any, Any, Any],
+    probes: Sequence[Probe],
+    held: dict[int, tuple[int | None, list[tuple[str, int]]]],
+) -> tuple[Any, Any, Any, Any, Any, tuple[str, ...]]:
+    """Integrate the velocity rows of ``x(...)`` outputs that springs do not hold into states.
 
     Only the displacements a user asks for get a state (named like the
     output): z' = C_v x + D_v u, and the output is z + D1_v u, so a velocity
     with an input-derivative term integrates exactly.
     """
-    picks = [j for j, p in enumerate(probes) if p.kind == "x"]
+    A, B, C, D, D1 = matrices
+    picks = [j for j, pr in enumerate(probes) if pr.kind == "x" and j not in held]
     if not picks:
-        return model
-    k = len(picks)
-    C, D, D1 = model.C_sparse, model.D_sparse, model.D1_sparse
-    rows_c, rows_d, rows_d1 = sp.csr_array(C[picks, :]), sp.csr_array(D[picks, :]), sp.csr_array(D1[picks, :])
-    A = sp.block_array([[model.A_sparse, None], [rows_c, sp.csr_array((k, k))]], format="csr")
-    B = sp.vstack([model.B_sparse, rows_d], format="csr")
-    select = sp.csr_array((np.ones(k), (picks, np.arange(k))), shape=(model.noutputs, k))
-    keep = sp.diags_array(np.array([0.0 if j in picks else 1.0 for j in range(model.noutputs)]))
-    C_new = sp.hstack([keep @ C, select], format="csr")
-    D_new = _clean(keep @ D + select @ rows_d1)
-    D1_new = _clean(keep @ D1)
-    names = tuple(probes[j].name for j in picks)
-    info = replace(model.info, integrators=names)
-    return StateSpaceModel(
-        _clean(A),
-        _clean(B),
-        _clean(C_new),
-        D_new,
-        D1_new,
-        (*model.states, *names),
-        model.inputs,
-        model.outputs,
-        model.title,
-        info,
-        pencil=model.pencil,
+        return A, B, C, D, D1, ()
+    k, p, nx_ = len(picks), len(probes), A.shape[0]
+    rows_c, rows_d, rows_d1 = (algebra.rows(M, picks) for M in (C, D, D1))
+    A = algebra.vstack(
+        [algebra.hstack([A, algebra.zeros(nx_, k)]), algebra.hstack([rows_c, algebra.zeros(k, k)])]
+    )
+    B = algebra.vstack([B, rows_d])
+    select = algebra.triplets([(j, col, 1) for col, j in enumerate(picks)], (p, k))
+    keep = algebra.diag([0 if j in picks else 1 for j in range(p)])
+    C = algebra.hstack([keep @ C, select])
+    clean = algebra.clean
+    return (
+        clean(A),
+        clean(B),
+        clean(C),
+        clean(keep @ D + select @ rows_d1),
+        clean(keep @ D1),
+        tuple(probes[j].name for j in picks),
     )
 
 

@@ -1,9 +1,10 @@
 """Symbolic state-space matrices (sympy) in terms of the element names.
 
 The numeric compiler picks the normal tree and checks the circuit; this
-module then writes the same branch laws (:func:`~netlistdyn.formulate.branch_laws`)
-with sympy symbols for the element values and eliminates everything but the
-states exactly, over the field of rational functions in those symbols
+module gives the element values as sympy symbols and runs the numeric
+compiler's own reduction (:func:`~netlistdyn.formulate.reduce`, the same
+branch laws and the same elimination) over :class:`RationalFunctions`, the
+exact algebra of rational functions in those symbols
 (``sympy.polys.matrices.DomainMatrix``). The result for the seeds' Circuit 1
 is the notes' A = [[−1/(R1·C1) − 1/(R2·C1), −1], [1/(L1·C1), 0]].
 
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import keyword
 import re
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,15 +37,8 @@ except ImportError:  # sympy is the optional "symbolic" extra
         "--symbolic needs sympy, which is not installed: "
         "pip install 'netlistdyn[symbolic]' (or pip install sympy)"
     ) from None
-from .formulate import (
-    Formulation,
-    _potential_rows,
-    branch_laws,
-    classify,
-    formulate,
-    held_displacements,
-    primary_maps,
-)
+from .algebra import Block
+from .formulate import ElementValues, formulate, reduce
 from .mechanics import DISPLACEMENT_KEYWORD, carried_masses
 from .netlist import Element, Kind, Netlist
 
@@ -203,7 +197,18 @@ def symbolic_model(
         sign = 1 if la.value * lb.value > 0 else -1
         return value(coupling) * sympy.sqrt(sign * value(la) * value(lb))
 
-    A, B, C, D, D1 = _reduce(form, value, mutual, rod_length)
+    # The numeric compile has chosen the tree and decided every rounding-level question on it.
+    exact = reduce(
+        RationalFunctions(),
+        ElementValues(value, mutual, rod_length),
+        form.netlist,
+        form.circuit,
+        form.tree,
+        form.probes,
+    )
+    A, B, C, D, D1 = (
+        sympy.ImmutableMatrix(M.applyfunc(_tidy)) for M in (exact.A, exact.B, exact.C, exact.D, exact.D1)
+    )
     model = form.model
     return SymbolicModel(
         A, B, C, D, D1, model.states, model.inputs, model.outputs, symbols, netlist.title, units
@@ -251,201 +256,113 @@ def _exact(value: float) -> sympy.Rational:
 # --- exact linear algebra over rational functions ---------------------------------------------
 
 
-def _matrix(entries: Sequence[tuple[int, int, Any]], shape: tuple[int, int]) -> sympy.Matrix:
-    out = sympy.zeros(*shape)
-    for row, col, coeff in entries:
-        out[row, col] += coeff
-    return out
+class RationalFunctions:
+    """The exact :class:`~netlistdyn.algebra.Algebra`: sympy matrices over rational functions.
 
-
-def _from_sparse(matrix: Any) -> sympy.Matrix:
-    """A scipy sparse matrix of small integers (topology) as a sympy matrix."""
-    coo = matrix.tocoo()
-    return _matrix(
-        [
-            (int(r), int(c), sympy.Integer(round(float(v))))
-            for r, c, v in zip(coo.row, coo.col, coo.data, strict=True)
-        ],
-        coo.shape,
-    )
-
-
-def _solve(matrix: sympy.Matrix, rhs: sympy.Matrix) -> sympy.Matrix:
-    """matrix⁻¹ rhs exactly; the numeric compiler has already checked solvability."""
-    if matrix.rows == 0 or rhs.cols == 0:
-        return sympy.zeros(matrix.cols, rhs.cols)
-    a, b = DomainMatrix.from_Matrix(matrix), DomainMatrix.from_Matrix(rhs)
-    a, b = a.unify(b)
-    a, b = a.to_field(), b.to_field()
-    try:
-        x = a.lu_solve(b)
-    except (ZeroDivisionError, ValueError, sympy.polys.matrices.exceptions.DMNonInvertibleMatrixError):
-        raise NetlistError("the circuit equations are singular for symbolic element values") from None
-    return x.to_Matrix().applyfunc(sympy.cancel)
-
-
-def _cols(m: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
-    return m.extract(list(range(m.rows)), [int(k) for k in index])
-
-
-def _rows(m: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
-    return m.extract([int(k) for k in index], list(range(m.cols)))
-
-
-@dataclass(frozen=True)
-class _Block:
-    x: sympy.Matrix
-    y: sympy.Matrix
-    dx: sympy.Matrix
-    dy: sympy.Matrix
-    u: sympy.Matrix
-    du: sympy.Matrix
-
-
-def _reduce(
-    form: Formulation,
-    value: Callable[[Element], sympy.Expr],
-    mutual: Callable[[Element, Element, Element], sympy.Expr],
-    rod_length: Callable[[Element], sympy.Expr],
-) -> tuple[sympy.ImmutableMatrix, ...]:
-    """The algebra of :func:`~netlistdyn.formulate.reduce_to_state_space`, exactly."""
-    netlist, circuit, tree = form.netlist, form.circuit, form.tree
-    n, m = circuit.nbranches, len(netlist.sources)
-    vmap_s, imap_s = primary_maps(tree)
-    vmap, imap = _from_sparse(vmap_s), _from_sparse(imap_s)
-    laws = branch_laws(netlist, circuit, value, mutual)
-    G = _matrix(laws.v, (n, n)) * vmap + _matrix(laws.i, (n, n)) * imap
-    if laws.control:
-        ctrl = _from_sparse(_potential_rows(tree, [pair for _, pair, _ in laws.control], n))
-        place = _matrix(
-            [(row, j, gain) for j, (row, _, gain) in enumerate(laws.control)], (n, len(laws.control))
-        )
-        G += place * ctrl
-    E = _matrix(laws.dv, (n, n)) * vmap + _matrix(laws.di, (n, n)) * imap
-    F = _matrix(laws.u, (n, m))
-    classes = classify(circuit, tree, netlist)
-    unit = _matrix([(r, int(j), 1) for r, j in enumerate(classes.source_input)], (len(classes.s), m))
-    e_d = _rows(E, classes.d)
-
-    def eliminate(g: sympy.Matrix, e: sympy.Matrix, f: sympy.Matrix) -> _Block:
-        """Inputs for source primaries, −E_d w' for excess primaries."""
-        u = f + _cols(g, classes.s) * unit
-        du = _cols(e, classes.s) * unit
-        dx, dy = _cols(e, classes.x), _cols(e, classes.y)
-        if len(classes.d):
-            g_d = _cols(g, classes.d)
-            dx -= g_d * _cols(e_d, classes.x)
-            dy -= g_d * _cols(e_d, classes.y)
-            du -= g_d * _cols(e_d, classes.s) * unit
-        return _Block(_cols(g, classes.x), _cols(g, classes.y), dx, dy, u, du)
-
-    nx_ = len(classes.x)
-    yb = eliminate(_rows(G, classes.y), _rows(E, classes.y), _rows(F, classes.y))
-    if not yb.dy.is_zero_matrix:
-        yb = _algebraic_derivatives(yb)
-    solved = -_solve(yb.y, sympy.Matrix.hstack(yb.x, yb.dx, yb.u, yb.du))
-    P, R = solved[:, :nx_], solved[:, nx_ : 2 * nx_]
-    Q, S = solved[:, 2 * nx_ : 2 * nx_ + m], solved[:, 2 * nx_ + m :]
-    xb = eliminate(_rows(G, classes.x), _rows(E, classes.x), _rows(F, classes.x))
-    mass = xb.dx + xb.dy * P + xb.y * R
-    rhs = sympy.Matrix.hstack(xb.x + xb.y * P, xb.u + xb.y * Q, xb.du + xb.dy * Q + xb.y * S)
-    solved_x = -_solve(mass, rhs)
-    A, B, K = solved_x[:, :nx_], solved_x[:, nx_ : nx_ + m], solved_x[:, nx_ + m :]
-
-    # Outputs, as in formulate._outputs; displacements that springs hold as sums of fluxes
-    # (formulate.held_displacements decides which, for both paths).
-    held = held_displacements(form.netlist, form.probes)
-    branch_of = {b.element.key: b for b in circuit.branches}
-    by_key = {e.key: e for e in form.netlist.elements}
-    rows = []
-    for j, probe in enumerate(form.probes):
-        if j in held:
-            row = sympy.zeros(1, n)
-            for key, sign in held[j][1]:
-                row += sign * value(by_key[key]) * imap.extract([branch_of[key].index], list(range(n)))
-                for coupling in form.netlist.elements:
-                    if coupling.kind is Kind.COUPLING and coupling.coupled and key in coupling.coupled:
-                        a, b = coupling.coupled
-                        other = b if a == key else a
-                        m_ab = mutual(coupling, by_key[a], by_key[b])
-                        row += sign * m_ab * imap.extract([branch_of[other].index], list(range(n)))
-            rows.append(row)
-        elif probe.kind in ("v", "x"):
-            rows.append(_from_sparse(_potential_rows(tree, [probe.nodes], n)))
-        else:
-            branch = next(b for b in circuit.branches if b.element.key == probe.element)
-            row = imap.extract([branch.index], list(range(n)))
-            if probe.kind == "angle":
-                row = row * (-value(branch.element) / rod_length(branch.element))
-            rows.append(row)
-    k = len(rows)
-    c_w = sympy.Matrix.vstack(*rows) if rows else sympy.zeros(0, n)
-    ob = eliminate(c_w, sympy.zeros(k, n), sympy.zeros(k, m))
-    c_x = ob.x + ob.y * P
-    c_dx = ob.dx + ob.y * R + ob.dy * P  # y' = P x' + Q u' (+ R x'', S u'' = 0: checked numerically)
-    c_u = ob.u + ob.y * Q
-    c_du = ob.du + ob.y * S + ob.dy * Q
-    C = c_x + c_dx * A
-    D = c_u + c_dx * B
-    D1 = c_du + c_dx * K
-
-    # Shift z = x − K u, then capacitor voltages → charges (q = C v).
-    B = B + A * K
-    D = D + C * K
-    scale = [
-        value(circuit.branches[int(j)].element)
-        if circuit.branches[int(j)].element.kind is Kind.CAPACITOR
-        else sympy.Integer(1)
-        for j in classes.x
-    ]
-    if nx_:
-        T, T_inv = sympy.diag(*scale), sympy.diag(*[1 / s for s in scale])
-        A, B, C = T * A * T_inv, T * B, C * T_inv
-
-    # Displacement outputs x(n): integrators appended after the circuit's states.
-    picks = [j for j, p in enumerate(form.probes) if p.kind == "x" and j not in held]
-    if picks:
-        A = sympy.Matrix.vstack(
-            sympy.Matrix.hstack(A, sympy.zeros(nx_, len(picks))),
-            sympy.Matrix.hstack(_rows(C, picks), sympy.zeros(len(picks), len(picks))),
-        )
-        B = sympy.Matrix.vstack(B, _rows(D, picks))
-        select = _matrix([(j, col, 1) for col, j in enumerate(picks)], (k, len(picks)))
-        keep = sympy.diag(*[0 if j in picks else 1 for j in range(k)])
-        C = sympy.Matrix.hstack(keep * C, select)
-        D = keep * D + select * _rows(D1, picks)
-        D1 = keep * D1
-    for j, (base, _) in held.items():  # a position in a free chain: another's plus fluxes
-        if base is not None:
-            C[j, :] = C[j, :] + C[base, :]
-            D[j, :] = D[j, :] + D[base, :]
-            D1[j, :] = D1[j, :] + D1[base, :]
-    return tuple(sympy.ImmutableMatrix(M.applyfunc(_tidy)) for M in (A, B, C, D, D1))
-
-
-def _algebraic_derivatives(yb: _Block) -> _Block:
-    """Exact counterpart of formulate._substitute_algebraic_derivatives.
-
-    The rows without derivatives, brought to reduced row echelon form, give
-    the resistive unknowns whose derivatives appear as combinations of
-    states and inputs; their derivatives then follow from x' and u'.
+    Solves are exact LU over the fraction field (``DomainMatrix``) followed by
+    ``cancel``; derivatives of resistive unknowns come from ``rref``. A
+    difference is plain subtraction and a product is zero only when it is:
+    there is no rounding, and the questions the numeric algebra answers to
+    rounding (higher index, derivative outputs) were decided by the numeric
+    compile on the same tree.
     """
-    n_y, n_x = yb.y.cols, yb.x.cols
-    dynamic = [any(not M.row(r).is_zero_matrix for M in (yb.dx, yb.dy, yb.du)) for r in range(yb.y.rows)]
-    static = [r for r, dyn in enumerate(dynamic) if not dyn]
-    z = [c for c in range(n_y) if not yb.dy.col(c).is_zero_matrix]
-    augmented = sympy.Matrix.hstack(_rows(yb.y, static), -_rows(yb.x, static), -_rows(yb.u, static))
-    rref, pivots = augmented.rref(simplify=sympy.cancel)
-    where = {col: r for r, col in enumerate(pivots)}
-    s_x, s_u = sympy.zeros(len(z), n_x), sympy.zeros(len(z), yb.u.cols)
-    for i, col in enumerate(z):
-        r = where.get(col)
-        if r is None or any(rref[r, c] != 0 for c in range(n_y) if c != col):
-            raise NetlistError("a resistive quantity's derivative is not determined by the states")
-        s_x[i, :] = rref[r, n_y : n_y + n_x]
-        s_u[i, :] = rref[r, n_y + n_x :]
-    dy_z = _cols(yb.dy, z)
-    return _Block(yb.x, yb.y, yb.dx + dy_z * s_x, sympy.zeros(*yb.dy.shape), yb.u, yb.du + dy_z * s_u)
+
+    def triplets(self, entries: Sequence[tuple[int, int, Any]], shape: tuple[int, int]) -> sympy.Matrix:
+        out = sympy.zeros(*shape)
+        for row, col, coeff in entries:
+            out[row, col] += coeff
+        return out
+
+    def topology(self, matrix: Any) -> sympy.Matrix:
+        coo = matrix.tocoo()
+        return self.triplets(
+            [
+                (int(r), int(c), sympy.Integer(round(float(v))))
+                for r, c, v in zip(coo.row, coo.col, coo.data, strict=True)
+            ],
+            coo.shape,
+        )
+
+    def zeros(self, rows: int, cols: int) -> sympy.Matrix:
+        return sympy.zeros(rows, cols)
+
+    def rows(self, matrix: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
+        return matrix.extract([int(k) for k in index], list(range(matrix.cols)))
+
+    def cols(self, matrix: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
+        return matrix.extract(list(range(matrix.rows)), [int(k) for k in index])
+
+    def hstack(self, blocks: Sequence[sympy.Matrix]) -> sympy.Matrix:
+        return sympy.Matrix.hstack(*blocks)
+
+    def vstack(self, blocks: Sequence[sympy.Matrix]) -> sympy.Matrix:
+        return sympy.Matrix.vstack(*blocks)
+
+    def diag(self, values: Sequence[Any], inverse: bool = False) -> sympy.Matrix:
+        entries = [sympy.sympify(v) for v in values]
+        if not entries:
+            return sympy.zeros(0, 0)
+        return sympy.diag(*[1 / v for v in entries] if inverse else entries)
+
+    def clean(self, matrix: sympy.Matrix) -> sympy.Matrix:
+        return matrix
+
+    def nonzero(self, matrix: sympy.Matrix) -> bool:
+        return not matrix.is_zero_matrix
+
+    def cancelled(self, base: sympy.Matrix, left: sympy.Matrix, right: sympy.Matrix) -> sympy.Matrix:
+        return base - left @ right
+
+    def negligible(self, left: sympy.Matrix, right: sympy.Matrix) -> bool:
+        return True  # decided on the same tree by the numeric compile
+
+    def solve(self, matrix: sympy.Matrix, rhs: sympy.Matrix, what: str) -> sympy.Matrix:
+        if matrix.rows == 0 or rhs.cols == 0:
+            return sympy.zeros(matrix.cols, rhs.cols)
+        a, b = DomainMatrix.from_Matrix(matrix), DomainMatrix.from_Matrix(rhs)
+        a, b = a.unify(b)
+        a, b = a.to_field(), b.to_field()
+        try:
+            x = a.lu_solve(b)
+        except (ZeroDivisionError, ValueError, sympy.polys.matrices.exceptions.DMNonInvertibleMatrixError):
+            raise NetlistError("the circuit equations are singular for symbolic element values") from None
+        return x.to_Matrix().applyfunc(sympy.cancel)
+
+    def algebraic_derivatives(self, block: Block, involved: Sequence[str], netlist: Netlist) -> Block:
+        """The rows without derivatives, in reduced row echelon form, give the resistive
+        unknowns whose derivatives appear as combinations of states and inputs; their
+        derivatives then follow from x' and u'."""
+        n_y, n_x = block.y.cols, block.x.cols
+        dynamic = [
+            any(not M.row(r).is_zero_matrix for M in (block.dx, block.dy, block.du))
+            for r in range(block.y.rows)
+        ]
+        static = [r for r, dyn in enumerate(dynamic) if not dyn]
+        z = [c for c in range(n_y) if not block.dy.col(c).is_zero_matrix]
+        augmented = sympy.Matrix.hstack(
+            self.rows(block.y, static), -self.rows(block.x, static), -self.rows(block.u, static)
+        )
+        rref, pivots = augmented.rref(simplify=sympy.cancel)
+        where = {col: r for r, col in enumerate(pivots)}
+        s_x, s_u = sympy.zeros(len(z), n_x), sympy.zeros(len(z), block.u.cols)
+        for i, col in enumerate(z):
+            r = where.get(col)
+            if r is None or any(rref[r, c] != 0 for c in range(n_y) if c != col):
+                raise NetlistError("a resistive quantity's derivative is not determined by the states")
+            s_x[i, :] = rref[r, n_y : n_y + n_x]
+            s_u[i, :] = rref[r, n_y + n_x :]
+        dy_z = self.cols(block.dy, z)
+        return Block(
+            block.x,
+            block.y,
+            block.dx + dy_z @ s_x,
+            sympy.zeros(*block.dy.shape),
+            block.u,
+            block.du + dy_z @ s_u,
+        )
+
+    def check_finite(self, netlist: Netlist, matrices: dict[str, Any]) -> None:
+        pass  # exact entries do not overflow
 
 
 def _tidy(expr: sympy.Expr) -> sympy.Expr:
