@@ -418,6 +418,93 @@ class BranchLaws:
     u: list[tuple[int, int, Any]]
 
 
+#: A branch of one element: ``(element key, port)``; port 0, or 0 and 1 for a transformer's ports.
+BranchRef = tuple[str, int]
+
+
+@dataclass(frozen=True)
+class ElementLaws:
+    """One element's constitutive equations, in the quantities of named branches.
+
+    The same six lists as :class:`BranchLaws`, with :data:`BranchRef` rows
+    and columns in place of branch indices: row ``(key, port)`` is that
+    branch's law; a ``v``/``i``/``dv``/``di`` column names the branch whose
+    voltage or current the coefficient multiplies (its own or another's:
+    a transformer's other port, an F/H source's controlling element, a
+    coupled inductor); a ``u`` column is the key of the independent source.
+    """
+
+    v: list[tuple[BranchRef, BranchRef, Any]]
+    i: list[tuple[BranchRef, BranchRef, Any]]
+    dv: list[tuple[BranchRef, BranchRef, Any]]
+    di: list[tuple[BranchRef, BranchRef, Any]]
+    control: list[tuple[BranchRef, tuple[str, str], Any]]
+    u: list[tuple[BranchRef, str, Any]]
+
+
+def element_laws(
+    element: Element, value: Callable[[Element], Any], mutual: Callable[[Element], Any]
+) -> ElementLaws:
+    """The constitutive equations of one linear element (SPICE sign conventions).
+
+    This is the one statement of each linear element's law: the tree/cotree
+    formulation (:func:`branch_laws`, numeric and symbolic) and the modified
+    nodal equations of :mod:`netlistdyn.nonlinear` both read it.
+
+    Parameters
+    ----------
+    element : Element
+        An R, C, L, V, I, E, F, G, H, transformer or K element.
+    value : callable
+        ``value(element)``: the element's value (Ω, F, H, V/V, A/A, …), a
+        float or a symbol.
+    mutual : callable
+        ``mutual(coupling)``: the mutual inductance (H) of a ``K`` element.
+
+    Returns
+    -------
+    ElementLaws
+        A K element gives the two inductors' mutual terms in their rows.
+    """
+    laws = ElementLaws([], [], [], [], [], [])
+    kind = element.kind
+    own = (element.key, 0)
+    if kind is Kind.RESISTOR:  # v − R i = 0
+        laws.v.append((own, own, 1))
+        laws.i.append((own, own, -value(element)))
+    elif kind is Kind.CAPACITOR:  # i − C v' = 0
+        laws.i.append((own, own, 1))
+        laws.dv.append((own, own, -value(element)))
+    elif kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0
+        laws.v.append((own, own, 1))
+        laws.di.append((own, own, -value(element)))
+    elif kind in (Kind.VSOURCE, Kind.ISOURCE):  # v − u = 0 or i − u = 0
+        (laws.v if kind is Kind.VSOURCE else laws.i).append((own, own, 1))
+        laws.u.append((own, element.key, -1))
+    elif kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
+        assert element.control_nodes is not None
+        (laws.v if kind is Kind.VCVS else laws.i).append((own, own, 1))
+        laws.control.append((own, element.control_nodes, -value(element)))
+    elif kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
+        assert element.control_source is not None
+        (laws.i if kind is Kind.CCCS else laws.v).append((own, own, 1))
+        laws.i.append((own, (element.control_source, 0), -value(element)))
+    elif kind is Kind.TRANSFORMER:
+        # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
+        second = (element.key, 1)
+        n = value(element)
+        laws.v.extend([(own, own, 1), (own, second, -n)])
+        laws.i.extend([(second, second, 1), (second, own, n)])
+    elif kind is Kind.COUPLING:  # −M i'_b in L_a's law, −M i'_a in L_b's
+        assert element.coupled is not None
+        a, b = ((name, 0) for name in element.coupled)
+        m = mutual(element)
+        laws.di.extend([(a, b, -m), (b, a, -m)])
+    else:  # pragma: no cover - the parser admits no other linear kinds
+        raise AssertionError(kind)
+    return laws
+
+
 def branch_laws(
     netlist: Netlist,
     circuit: CircuitGraph,
@@ -439,48 +526,40 @@ def branch_laws(
     Returns
     -------
     BranchLaws
+        :func:`element_laws` of every element, rows and columns numbered as
+        the circuit's branches.
     """
     laws = BranchLaws([], [], [], [], [], [])
     inputs = {e.key: j for j, e in enumerate(netlist.sources)}
-    branch_of = {b.element.key: b.index for b in circuit.branches if b.element.kind is not Kind.TRANSFORMER}
+    index = {(b.element.key, b.port): b.index for b in circuit.branches}
+    inductor = {b.element.key: b.element for b in circuit.branches if b.element.kind is Kind.INDUCTOR}
+
+    def coupling(element: Element) -> Any:
+        assert element.coupled is not None
+        a, b = element.coupled
+        return mutual(element, inductor[a], inductor[b])
+
+    def place(local: ElementLaws, row: BranchRef | None) -> None:
+        """Append the rows of ``local`` (only ``row`` when given), numbered as branches."""
+        for ours, theirs in (
+            (laws.v, local.v),
+            (laws.i, local.i),
+            (laws.dv, local.dv),
+            (laws.di, local.di),
+        ):
+            ours.extend((index[r], index[c], x) for r, c, x in theirs if row is None or r == row)
+        laws.control.extend((index[r], pair, x) for r, pair, x in local.control if row is None or r == row)
+        laws.u.extend((index[r], inputs[key], x) for r, key, x in local.u if row is None or r == row)
+
+    written: dict[str, ElementLaws] = {}
     for branch in circuit.branches:
-        k, element = branch.index, branch.element
-        kind = element.kind
-        if kind is Kind.RESISTOR:  # v − R i = 0
-            laws.v.append((k, k, 1))
-            laws.i.append((k, k, -value(element)))
-        elif kind is Kind.CAPACITOR:  # i − C v' = 0
-            laws.i.append((k, k, 1))
-            laws.dv.append((k, k, -value(element)))
-        elif kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0
-            laws.v.append((k, k, 1))
-            laws.di.append((k, k, -value(element)))
-        elif kind in (Kind.VSOURCE, Kind.ISOURCE):  # v − u = 0 or i − u = 0
-            (laws.v if kind is Kind.VSOURCE else laws.i).append((k, k, 1))
-            laws.u.append((k, inputs[element.key], -1))
-        elif kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
-            assert element.control_nodes is not None
-            (laws.v if kind is Kind.VCVS else laws.i).append((k, k, 1))
-            laws.control.append((k, element.control_nodes, -value(element)))
-        elif kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
-            assert element.control_source is not None
-            (laws.i if kind is Kind.CCCS else laws.v).append((k, k, 1))
-            laws.i.append((k, branch_of[element.control_source], -value(element)))
-        elif kind is Kind.TRANSFORMER:
-            # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
-            if branch.port == 0:
-                laws.v.extend([(k, k, 1), (k, k + 1, -value(element))])
-            else:
-                laws.i.extend([(k, k, 1), (k, k - 1, value(element))])
-        else:  # pragma: no cover - the parser admits no other kinds
-            raise AssertionError(kind)
-    index = {b.element.key: b.index for b in circuit.branches if b.element.kind is Kind.INDUCTOR}
+        element = branch.element
+        if element.key not in written:
+            written[element.key] = element_laws(element, value, coupling)
+        place(written[element.key], (element.key, branch.port))
     for element in netlist.elements:
         if element.kind is Kind.COUPLING:
-            assert element.coupled is not None
-            a, b = (index[name] for name in element.coupled)
-            m = mutual(element, circuit.branches[a].element, circuit.branches[b].element)
-            laws.di.extend([(a, b, -m), (b, a, -m)])
+            place(element_laws(element, value, coupling), None)
     return laws
 
 

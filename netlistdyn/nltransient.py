@@ -89,28 +89,19 @@ class NonlinearSystem:
         nc, nl, nd = len(c.capacitors), len(c.inductors), len(c.charged_diodes)
         self.nstates = nc + nl + nd + len(c.disp_index)
         self.offsets = (nc, nc + nl)
-        index = {e.key: k for k, e in enumerate(c.inductors)}
         # a nonlinear inductor's row of L⁻¹ is 1 here; f() divides it by L(i)
-        L = np.diag([e.value for e in c.inductors]) if nl else np.zeros((0, 0))
-        for e in netlist.elements:
-            if e.kind is Kind.COUPLING and e.coupled is not None:
-                a, b = (index[k] for k in e.coupled)
-                m = e.value * float(np.sqrt(abs(c.inductors[a].value * c.inductors[b].value)))
-                L[a, b] += m
-                L[b, a] += m
+        L = c.inductance_matrix()
         self.Linv = np.linalg.inv(L) if nl else L
         size = c.size
         # P: ∂F/∂x up to sign (F rows of the state-fixed branches), S: f = S z for the linear part
-        rows, cols, vals = [], [], []
-        srows, scols, svals = [], [], []
+        srows: list[int] = []
+        scols: list[int] = []
+        svals: list[float] = []
+        # a linear capacitor's voltage is q/C (a nonlinear one's moves by dq/C(v), set by jacobian())
+        rows, cols, vals = list(c._cap_rows), list(c._cap_states), list(1.0 / c._cap_values)
         for k, e in enumerate(c.capacitors):
-            br = c.branch_index[e.key]
-            if e.key not in c.storage:  # a nonlinear one: 1/C(v), set by jacobian()
-                rows.append(br)
-                cols.append(k)
-                vals.append(1.0 / e.value)
             srows.append(k)
-            scols.append(br)
+            scols.append(c.branch_index[e.key])
             svals.append(1.0)
         for k, e in enumerate(c.inductors):
             rows.append(c.branch_index[e.key])

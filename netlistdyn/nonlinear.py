@@ -1,17 +1,24 @@
 """Nonlinear netlists: residual and Jacobian, operating point, linearisation.
 
-The circuit is written as modified nodal equations ``F(z) = 0`` in the node
-voltages and the currents of the branches that need one (voltage sources,
-inductors, capacitors, controlled voltage sources, behavioural voltage
-sources, transformer ports, and any element whose current an expression or
-an F/H source reads). Each element stamps its branch law with the SPICE sign
-conventions; diodes and behavioural sources add their current or voltage and
-its exact derivatives (:mod:`netlistdyn.devices`).
+The circuit is written as modified nodal equations ``F(z) = G z − b + N(z) = 0``
+in the node voltages and some branch currents. The linear part ``G z − b``
+comes from the same per-element laws as the linear compiler
+(:func:`netlistdyn.formulate.element_laws`): a branch whose law is explicit
+in its own current, without derivatives, and whose current nothing reads is
+solved for it and put into KCL (a resistor's conductance, a G or F source, a
+current source); every other branch (voltage sources, inductors, capacitors,
+E and H sources, a transformer's first port, any element whose current an
+expression or an F/H source reads) keeps its current as an unknown and its
+law as that unknown's row. A diode's RS is a resistor's law, its junction
+charge a capacitor's. ``N(z)`` holds what is not linear — diode currents and
+behavioural sources, with their exact derivatives
+(:mod:`netlistdyn.devices`).
 
-Two modes share the stamps:
+Two modes share the laws:
 
-- ``dc``: capacitors open, inductors short (the operating point);
-- ``state``: each state is given — a capacitor's charge fixes its voltage
+- ``dc``: the laws without their derivative terms — capacitors open,
+  inductors short (the operating point);
+- ``state``: each storage branch's law is replaced by its state — a capacitor's charge fixes its voltage
   (q/C, or the voltage whose charge is q for a ``C=``/``Q=`` capacitor,
   :class:`Storage`), an inductor's current is a current source, a diode's
   junction charge fixes its junction voltage — and the network is resistive. Solving it
@@ -52,6 +59,7 @@ from .devices import (
 )
 from .errors import NetlistError, SourceLocation
 from .expressions import ExpressionError
+from .formulate import BranchRef, ElementLaws, _numeric_mutual, element_laws
 from .mechanics import DISPLACEMENT_KEYWORD, state_prefix
 from .netlist import GROUND, STORAGE_KINDS, Diagnostic, Element, Kind, Netlist
 
@@ -286,6 +294,98 @@ def _vte(model_n: float) -> float:
     return model_n * thermal_voltage()
 
 
+#: The linear element whose law has the form of a nonlinear capacitor's or inductor's.
+_LINEAR_FORM = {Kind.CAPACITANCE: Kind.CAPACITOR, Kind.CHARGE: Kind.CAPACITOR, Kind.INDUCTANCE: Kind.INDUCTOR}
+#: Kinds whose law :func:`netlistdyn.formulate.element_laws` states.
+LINEAR_KINDS = frozenset(
+    {
+        Kind.RESISTOR,
+        Kind.CAPACITOR,
+        Kind.INDUCTOR,
+        Kind.VSOURCE,
+        Kind.ISOURCE,
+        Kind.VCVS,
+        Kind.VCCS,
+        Kind.CCCS,
+        Kind.CCVS,
+        Kind.TRANSFORMER,
+        Kind.COUPLING,
+    }
+)
+
+
+def _junction_nodes(diode: Element) -> tuple[str, str]:
+    """The junction's anode (the internal node behind RS when RS > 0) and cathode."""
+    model = diode.diode
+    assert model is not None
+    return (f"{diode.key}#anode" if model.RS > 0 else diode.nodes[0]), diode.nodes[1]
+
+
+def _series_resistance(diode: Element) -> Element:
+    """A diode's RS (Ω, divided by the area) as a resistor from its anode to the junction."""
+    model = diode.diode
+    assert model is not None
+    return Element(
+        Kind.RESISTOR,
+        f"{diode.name}.rs",
+        (diode.nodes[0], _junction_nodes(diode)[0]),
+        model.RS / diode.value,
+        diode.loc,
+    )
+
+
+def _element_law(e: Element, keyed: Mapping[str, Element]) -> ElementLaws | None:
+    """Element ``e``'s law with its values (``keyed``: every element by key, for couplings).
+
+    A linear element's is :func:`formulate.element_laws`'; a nonlinear capacitor's or
+    inductor's has the form of a linear one's (i = C(v)·v', v = L(i)·i'; its derivative
+    term never enters the equations: ``dc`` drops it, ``state`` replaces the law); a
+    behavioural voltage source's is v − f = 0 with f in N(z). None: diodes and behavioural
+    current sources, wholly in N(z).
+    """
+
+    def mutual(coupling: Element) -> float:
+        assert coupling.coupled is not None
+        a, b = coupling.coupled
+        return _numeric_mutual(coupling, keyed[a], keyed[b])
+
+    def value(element: Element) -> float:
+        return element.value
+
+    if e.kind in LINEAR_KINDS:
+        return element_laws(e, value, mutual)
+    if e.kind in STORAGE_KINDS:
+        return element_laws(replace(e, kind=_LINEAR_FORM[e.kind]), value, mutual)
+    if e.kind is Kind.BVOLTAGE:
+        return ElementLaws([((e.key, 0), (e.key, 0), 1.0)], [], [], [], [], [])
+    return None
+
+
+@dataclass(frozen=True)
+class _Law:
+    """One branch law of the modified nodal equations, in the unknowns.
+
+    ``current`` is the unknown of the branch's current, or None when the law
+    is solved for it (own coefficient ``own``) and the current put into KCL at
+    ``plus`` and ``minus``. ``terms`` are the law's derivative-free
+    coefficients of unknowns (the own current excluded when it is solved
+    for), ``inputs`` those of the inputs. ``storage`` is ``v`` when a state
+    gives the branch's voltage (a capacitor, a diode's junction charge),
+    ``i`` when it gives its current (an inductor), with the element's
+    capacitance or inductance (F, H) as ``value``.
+    """
+
+    name: str
+    plus: int | None
+    minus: int | None
+    current: int | None
+    own: float
+    terms: tuple[tuple[int, float], ...]
+    inputs: tuple[tuple[int, float], ...]
+    storage: str | None
+    value: float
+
+
 class NonlinearCircuit:
     """The modified nodal equations of a netlist, linear or not.
 
@@ -307,8 +407,6 @@ class NonlinearCircuit:
         behaviours: dict[str, Behaviour] = {}
         displaced: dict[str, Element] = {}  # nodes whose displacement x(n) an expression reads
         for e in elements:
-            if e.kind in (Kind.CCCS, Kind.CCVS) and e.control_source is not None:
-                wanted.add(e.control_source)
             if e.kind in (Kind.BVOLTAGE, Kind.BCURRENT):
                 assert e.expression is not None
                 try:
@@ -347,34 +445,21 @@ class NonlinearCircuit:
         for e in elements:
             if e.kind is Kind.COUPLING and any(k in self.storage for k in e.coupled or ()):
                 raise NetlistError(f"{e.name}: a coupling of a nonlinear inductor is not supported", e.loc)
-        needs_branch = (
-            Kind.VSOURCE,
-            Kind.INDUCTOR,
-            Kind.CAPACITOR,
-            *STORAGE_KINDS,
-            Kind.VCVS,
-            Kind.CCVS,
-            Kind.BVOLTAGE,
-            Kind.TRANSFORMER,
-        )
         n = len(self.nodes)
+        self.sources = netlist.sources
+        self.source_index = {e.key: j for j, e in enumerate(self.sources)}
+        #: Unknown of each branch current (element key; ``key#q``: a diode's junction-charge branch).
         self.branch_index: dict[str, int] = {}
-        for e in elements:
-            if e.kind in needs_branch or e.key in wanted:
-                self.branch_index[e.key] = n + len(self.branch_index)
+        self._laws = self._branch_laws(wanted)
         self.diodes: list[_Diode] = []
         for e in elements:
             if e.kind is Kind.DIODE:
                 model = e.diode
                 assert model is not None
-                anode = self._at(f"{e.key}#anode" if model.RS > 0 else e.nodes[0])
-                charge = model.CJO > 0 or model.TT > 0
-                if charge:
-                    self.branch_index[e.key + "#q"] = n + len(self.branch_index)
                 self.diodes.append(
                     _Diode(
                         e,
-                        anode,
+                        self._at(_junction_nodes(e)[0]),
                         self._at(e.nodes[1]),
                         model.IS * e.value,
                         model.N,
@@ -396,18 +481,95 @@ class NonlinearCircuit:
                         e, b, self._at(e.nodes[0]), self._at(e.nodes[1]), self.branch_index.get(e.key), refs
                     )
                 )
-        self.sources = netlist.sources
-        self.source_index = {e.key: j for j, e in enumerate(self.sources)}
         self.capacitors = [e for e in elements if e.kind in CAPACITOR_KINDS]
         self.inductors = [e for e in elements if e.kind in INDUCTOR_KINDS]
         self.charged_diodes = [d for d in self.diodes if d.charge_branch is not None]
         self._diode_arrays()
+        self._input_rows()
         self._linear: dict[str, sp.csc_array] = {}
         self._abs_linear: dict[str, sp.csc_array] = {}
         self._floor: NDArray[np.float64] | None = None
         self._vj_last: NDArray[np.float64] | None = None
         self._dense: dict[str, NDArray[np.float64]] = {}
         self._abs_dense: dict[str, NDArray[np.float64]] = {}
+
+    def _branch_laws(self, read: set[str]) -> list[_Law]:
+        """The linear part of the equations: every branch's law from :func:`formulate.element_laws`.
+
+        The linear elements' laws, then the diodes' (RS as a resistor, the
+        junction charge as a capacitor whose state is its voltage). A branch
+        whose law is explicit in its own current, without derivatives, and
+        whose current no other law nor expression (``read``: keys) reads is
+        solved for its current, which KCL takes (a conductance, VCCS or
+        current-source stamp); every other branch keeps its current as an
+        unknown, numbered here, and its law as that unknown's row.
+        """
+        keyed = {e.key: e for e in self.netlist.elements}
+        local = [(e, law) for e in self.netlist.elements if (law := _element_law(e, keyed)) is not None]
+        for e in self.netlist.elements:
+            if e.kind is Kind.DIODE and e.diode is not None:
+                if e.diode.RS > 0:
+                    rs = _series_resistance(e)
+                    local.append((rs, _element_law(rs, keyed)))
+                if e.diode.CJO > 0 or e.diode.TT > 0:
+                    charge = Element(Kind.CAPACITOR, f"{e.name}#q", _junction_nodes(e), 1.0, e.loc)
+                    local.append((charge, _element_law(charge, keyed)))
+        # each branch's law by branch: its v, i, dv, di, control and u terms as (column, coefficient)
+        table: dict[BranchRef, tuple[list[tuple[Any, Any]], ...]] = {}
+        where: dict[BranchRef, tuple[str, str, str]] = {}  # its unknown's name and nodes
+        for e, _ in local:
+            if e.kind is not Kind.COUPLING:
+                key = e.key
+                for port in range(len(e.nodes) // 2):
+                    table[(key, port)] = ([], [], [], [], [], [])
+                    where[(key, port)] = (
+                        key if port == 0 else f"{key}#{port + 1}",
+                        *e.nodes[2 * port : 2 * port + 2],
+                    )
+        for _, laws in local:
+            for field_, terms in enumerate((laws.v, laws.i, laws.dv, laws.di, laws.control, laws.u)):
+                for r, c, x in terms:
+                    table[r][field_].append((c, x))
+        readers = {(key, 0) for key in read}
+        for ref, (_, i, _, di, _, _) in table.items():
+            readers.update(c for c, _ in (*i, *di) if c != ref)
+        solved: dict[BranchRef, float] = {}
+        n = len(self.nodes)
+        for ref, (_, i, dv, di, _, _) in table.items():
+            own = sum(x for c, x in i if c == ref)
+            if own != 0 and not dv and not di and ref not in readers:
+                solved[ref] = own
+            else:
+                self.branch_index[where[ref][0]] = n + len(self.branch_index)
+        at = self._at
+        out = []
+        for ref, (v, i, dv, di, control, u) in table.items():
+            name, pos, neg = where[ref]
+            terms: list[tuple[int | None, float]] = []
+            for c, x in v:
+                terms += [(at(where[c][1]), x), (at(where[c][2]), -x)]
+            for c, x in i:
+                if not (c == ref and ref in solved):
+                    terms.append((self.branch_index[where[c][0]], x))
+            for (a, b), x in control:
+                terms += [(at(a), x), (at(b), -x)]
+            own_dv = [x for c, x in dv if c == ref]
+            own_di = [x for c, x in di if c == ref]
+            storage = "v" if own_dv else "i" if own_di else None
+            out.append(
+                _Law(
+                    name,
+                    at(pos),
+                    at(neg),
+                    None if ref in solved else self.branch_index[name],
+                    solved.get(ref, 0.0),
+                    tuple((k, float(x)) for k, x in terms if k is not None),
+                    tuple((self.source_index[key], float(x)) for key, x in u),
+                    storage,
+                    -float(sum(own_dv or own_di)),
+                )
+            )
+        return out
 
     def _variable(self, kind: str, ref: str) -> int | None:
         """Unknown read by an expression variable (None: time)."""
@@ -482,7 +644,14 @@ class NonlinearCircuit:
         return None if node == GROUND else self.node_index[node]
 
     def linear_matrix(self, mode: str) -> sp.csc_array:
-        """The constant part G of ``F(z) = G z − b + N(z)`` in ``mode`` (``dc`` or ``state``)."""
+        """The constant part G of ``F(z) = G z − b + N(z)`` in ``mode`` (``dc`` or ``state``).
+
+        Rows are KCL at each node (currents leaving it), then each branch
+        law (:meth:`_branch_laws`) as its current's row. ``dc`` drops the
+        laws' derivative terms (a capacitor's current is 0, an inductor's
+        voltage is 0); ``state`` replaces a storage branch's law by its state
+        (voltage or current given by ``b``).
+        """
         if mode in self._linear:
             return self._linear[mode]
         rows: list[int] = []
@@ -495,130 +664,98 @@ class NonlinearCircuit:
                 cols.append(c)
                 vals.append(v)
 
-        def conductance(a: int | None, b: int | None, g: float) -> None:
-            add(a, a, g)
-            add(b, b, g)
-            add(a, b, -g)
-            add(b, a, -g)
-
-        def kcl(a: int | None, b: int | None, k: int) -> None:  # current k leaves a, enters b
-            add(a, k, 1.0)
-            add(b, k, -1.0)
-
-        def across(k: int, a: int | None, b: int | None, scale: float = 1.0) -> None:  # row k: v_a − v_b
-            add(k, a, scale)
-            add(k, b, -scale)
-
-        for e in self.netlist.elements:
-            kind = e.kind
-            if kind in (Kind.COUPLING, Kind.ISOURCE, Kind.BCURRENT):
+        for law in self._laws:
+            k = law.current
+            if k is None:  # its current −(terms)/own leaves plus, enters minus
+                for c, x in law.terms:
+                    add(law.plus, c, -x / law.own)
+                    add(law.minus, c, x / law.own)
                 continue
-            if kind is Kind.DIODE:
-                model = e.diode
-                assert model is not None
-                if model.RS > 0:
-                    conductance(self._at(e.nodes[0]), self._at(f"{e.key}#anode"), e.value / model.RS)
-                continue
-            if kind is Kind.TRANSFORMER:
-                k = self.branch_index[e.key]
-                p1, m1, p2, m2 = (self._at(x) for x in e.nodes)
-                kcl(p1, m1, k)
-                add(p2, k, -e.value)
-                add(m2, k, e.value)
-                across(k, p1, m1)
-                across(k, p2, m2, -e.value)
-                continue
-            a, b = self._at(e.nodes[0]), self._at(e.nodes[1])
-            k = self.branch_index.get(e.key)
-            if kind is Kind.RESISTOR:
-                if k is None:
-                    conductance(a, b, 1.0 / e.value)
-                else:
-                    kcl(a, b, k)
-                    across(k, a, b)
-                    add(k, k, -e.value)
-            elif kind is Kind.VCCS:
-                c, d = (self._at(x) for x in e.control_nodes or ())
-                for row, sign in ((a, 1.0), (b, -1.0)):
-                    add(row, c, sign * e.value)
-                    add(row, d, -sign * e.value)
-                if k is not None:  # its current read elsewhere: k = gain (v_c − v_d)
-                    add(k, k, 1.0)
-                    add(k, c, -e.value)
-                    add(k, d, e.value)
-            elif kind is Kind.CCCS:
-                kc = self.branch_index[e.control_source or ""]
-                add(a, kc, e.value)
-                add(b, kc, -e.value)
-                if k is not None:
-                    add(k, k, 1.0)
-                    add(k, kc, -e.value)
+            add(law.plus, k, 1.0)
+            add(law.minus, k, -1.0)
+            if mode == "state" and law.storage == "v":
+                add(k, law.plus, 1.0)
+                add(k, law.minus, -1.0)
+            elif mode == "state" and law.storage == "i":
+                add(k, k, 1.0)
             else:
-                assert k is not None
-                kcl(a, b, k)
-                if kind in (Kind.VSOURCE, Kind.BVOLTAGE):
-                    across(k, a, b)
-                elif kind is Kind.VCVS:
-                    across(k, a, b)
-                    c, d = (self._at(x) for x in e.control_nodes or ())
-                    add(k, c, -e.value)
-                    add(k, d, e.value)
-                elif kind is Kind.CCVS:
-                    across(k, a, b)
-                    add(k, self.branch_index[e.control_source or ""], -e.value)
-                elif kind in INDUCTOR_KINDS:
-                    if mode == "dc":
-                        across(k, a, b)
-                    else:
-                        add(k, k, 1.0)
-                elif kind in CAPACITOR_KINDS:
-                    if mode == "dc":
-                        add(k, k, 1.0)
-                    else:
-                        across(k, a, b)
-                elif kind is Kind.ISOURCE:  # pragma: no cover - skipped above
-                    pass
-        for d in self.diodes:
-            if d.charge_branch is not None:
-                kq = d.charge_branch
-                kcl(d.anode, d.cathode, kq)
-                if mode == "dc":
-                    add(kq, kq, 1.0)
-                else:
-                    across(kq, d.anode, d.cathode)
+                for c, x in law.terms:
+                    add(k, c, x)
         for node, k in self.disp_index.items():  # dc: at rest, v(n) = 0; state: x(n) given
             add(k, self.node_index[node] if mode == "dc" else k, 1.0)
         matrix = sp.csc_array((vals, (rows, cols)), shape=(self.size, self.size))
         matrix.sum_duplicates()
         self._linear[mode] = matrix
         self._abs_linear[mode] = abs(matrix)
-        self._dense[mode] = matrix.toarray()
-        self._abs_dense[mode] = np.abs(self._dense[mode])
+        if self.size <= DENSE_LIMIT:
+            self._dense[mode] = matrix.toarray()
+            self._abs_dense[mode] = np.abs(self._dense[mode])
         return matrix
+
+    def _input_rows(self) -> None:
+        """b = (rows, columns, values) · u: the laws' input terms, on their rows or in KCL."""
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+        for law in self._laws:
+            for j, x in law.inputs:
+                if law.current is not None:
+                    rows.append(law.current)
+                    cols.append(j)
+                    vals.append(-x)
+                else:
+                    for node, sign in ((law.plus, 1.0), (law.minus, -1.0)):
+                        if node is not None:
+                            rows.append(node)
+                            cols.append(j)
+                            vals.append(sign * x / law.own)
+        self._u_rows = np.asarray(rows, dtype=np.intp)
+        self._u_cols = np.asarray(cols, dtype=np.intp)
+        self._u_vals = np.asarray(vals, dtype=float)
+        stored = {law.name: law for law in self._laws if law.storage is not None}
+        linear = [(k, stored[e.key]) for k, e in enumerate(self.capacitors) if e.key not in self.storage]
+        #: linear capacitors: state index, row, capacitance (F); nonlinear ones: state index, row, Storage
+        self._cap_states = np.array([k for k, _ in linear], dtype=np.intp)
+        self._cap_rows = np.array([law.current for _, law in linear], dtype=np.intp)
+        self._cap_values = np.array([law.value for _, law in linear])
+        self._nl_cap_rows = [
+            (k, self.branch_index[e.key], self.storage[e.key])
+            for k, e in enumerate(self.capacitors)
+            if e.key in self.storage
+        ]
+        self._ind_rows = np.array([self.branch_index[e.key] for e in self.inductors], dtype=np.intp)
+
+    def inductance_matrix(self) -> NDArray[np.float64]:
+        """L of the inductors (H; couplings' M off the diagonal), from their laws' i' terms.
+
+        A nonlinear inductor's entry is its element value 1 (its L(i) divides later).
+        """
+        index = {e.key: k for k, e in enumerate(self.inductors)}
+        keyed = {e.key: e for e in self.netlist.elements}
+        L = np.zeros((len(index), len(index)))
+        for e in self.netlist.elements:
+            if e.kind in (*INDUCTOR_KINDS, Kind.COUPLING):
+                law = _element_law(e, keyed)
+                assert law is not None
+                for (a, _), (b, _), x in law.di:
+                    L[index[a], index[b]] -= x
+        return L
 
     def rhs(
         self, mode: str, u: NDArray[np.float64], x: NDArray[np.float64] | None = None
     ) -> NDArray[np.float64]:
         """The constant vector b of ``F = G z − b + N(z)``: sources (and states in ``state`` mode)."""
-        b = np.zeros(self.size)
-        for j, e in enumerate(self.sources):
-            if e.kind is Kind.VSOURCE:
-                b[self.branch_index[e.key]] += u[j]
-            else:
-                p, m = self._at(e.nodes[0]), self._at(e.nodes[1])
-                if p is not None:
-                    b[p] -= u[j]
-                if m is not None:
-                    b[m] += u[j]
+        b = np.bincount(self._u_rows, weights=self._u_vals * u[self._u_cols], minlength=self.size).astype(
+            float
+        )
         if mode == "state":
             assert x is not None
             nc = len(self.capacitors)
             nl = len(self.inductors)
-            for k, e in enumerate(self.capacitors):
-                cap = self.storage.get(e.key)
-                b[self.branch_index[e.key]] = x[k] / e.value if cap is None else cap.voltage(float(x[k]))
-            for k, e in enumerate(self.inductors):
-                b[self.branch_index[e.key]] = x[nc + k]
+            b[self._cap_rows] = x[self._cap_states] / self._cap_values
+            for k, row, cap in self._nl_cap_rows:
+                b[row] = cap.voltage(float(x[k]))
+            b[self._ind_rows] = x[nc : nc + nl]
             nd = len(self.charged_diodes)
             if nd:
                 b[self._qbranch] = self.junction_voltages(np.asarray(x[nc + nl : nc + nl + nd], dtype=float))
@@ -898,18 +1035,13 @@ class NonlinearCircuit:
     ) -> OperatingPoint:
         voltages = {n: float(z[k]) for k, n in enumerate(self.nodes)}
         currents = {key: float(z[k]) for key, k in self.branch_index.items() if "#" not in key}
-        for e in self.netlist.elements:
-            if e.key in currents:
-                continue
-            if e.kind is Kind.RESISTOR:
-                currents[e.key] = (self._v(z, e.nodes[0]) - self._v(z, e.nodes[1])) / e.value
-            elif e.kind is Kind.ISOURCE:
-                currents[e.key] = float(u[self.source_index[e.key]])
-            elif e.kind is Kind.VCCS:
-                c, d = e.control_nodes or (GROUND, GROUND)
-                currents[e.key] = e.value * (self._v(z, c) - self._v(z, d))
-            elif e.kind is Kind.CCCS:
-                currents[e.key] = e.value * float(z[self.branch_index[e.control_source or ""]])
+        keys = {e.key for e in self.netlist.elements}
+        for law in self._laws:  # a current solved from its law: −(terms)/own
+            if law.current is None and law.name in keys:
+                terms = sum(x * float(z[c]) for c, x in law.terms) + sum(
+                    x * float(u[j]) for j, x in law.inputs
+                )
+                currents[law.name] = -terms / law.own
         for d in self.diodes:
             vd = self._junction_from_z(d, z)
             i, _ = diode_current(vd, d.isat, d.n)
@@ -1077,11 +1209,8 @@ def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
             assert model is not None
             anode = e.nodes[0]
             if model.RS > 0:
-                inner = f"{e.key}#anode"
-                out.append(
-                    Element(Kind.RESISTOR, f"{e.name}.rs", (e.nodes[0], inner), model.RS / e.value, e.loc)
-                )
-                anode = inner
+                out.append(_series_resistance(e))
+                anode = _junction_nodes(e)[0]
             vd = circuit._junction_from_z(d, z)
             i, g = diode_current(vd, d.isat, d.n)
             _, cap = diode_charge(vd, i, g, d.cjo, model.VJ, model.M, model.TT, model.FC)
