@@ -192,9 +192,10 @@ def ngspice(netlist_text: str, probes: list[str], work: Path, key: str, tight: b
 RUNS = ("ref", "exact", "ours", "ngspice", "tight", "radau")
 #: Reference runs: key -> (method, rtol). ``ref`` is the Padé run of earlier tables.
 REFERENCES = {"ref": ("pade", "1e-11")}
-#: Runs an error can be measured against, in order of preference (``exact``: dense, small grids;
-#: then our CF run at the tightest rtol).
-REFERENCE_KEYS = ("exact", "cf_rtol1e-12", "ref")
+#: Runs an error can be measured against, in order of preference (``modal``: the independent
+#: closed-form modal solution of an RC grid, benchmarks/modal_reference.py; ``exact``: dense Van
+#: Loan discretisation, small grids; then our CF run at the tightest rtol).
+REFERENCE_KEYS = ("modal", "exact", "cf_rtol1e-12", "ref")
 METHOD_KEY = {"pade": "", "cf": "_cf", "cf/2": "_cf2"}
 METHOD_LABEL = {"pade": "Padé", "cf": "CF", "cf/2": "CF, 2 steps per output step"}
 
@@ -226,8 +227,8 @@ def main() -> int:
     )
     parser.add_argument(
         "--reference",
-        default="exact",
-        help="reference for the errors (exact, cf_rtol1e-12 or ref; else the first found)",
+        default="modal",
+        help="reference for the errors (modal, exact, cf_rtol1e-12 or ref; else the first found)",
     )
     parser.add_argument("--store", type=Path, default=ROOT / "benchmarks" / "results" / "grid")
     parser.add_argument("--timeout", type=float, default=900.0, help="CPU seconds per run")
