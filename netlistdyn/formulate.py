@@ -825,6 +825,23 @@ def reduce(
     ``values`` :data:`NUMERIC_VALUES`) and the symbolic one
     (:mod:`netlistdyn.symbolic`, exact rational functions).
 
+    Parameters
+    ----------
+    algebra : Algebra
+        The matrix type and its rounding-aware (or exact) operations.
+    values : ElementValues
+        The element values in that algebra.
+    netlist : Netlist
+    circuit : CircuitGraph
+    tree : TreeSplit
+        The normal tree (chosen by :func:`formulate`).
+    probes : sequence of Probe
+        The outputs.
+
+    Returns
+    -------
+    Reduction
+
     Raises
     ------
     SingularCircuitError
@@ -1013,6 +1030,9 @@ def _current_weights(
     ``i(X)`` (a two-port's first port), ``angle(rod)`` = −L·i/l (i = k·(x_pivot − x_bob)
     with L = 1/k), and each held displacement: Σ sign·(L·i + Σ M·i_other) over its path.
     """
+    through = [j for j, probe in enumerate(probes) if j in held or probe.kind not in ("v", "x")]
+    if not through:
+        return []
     key_branch: dict[str, int] = {}
     for b in circuit.branches:  # a two-port's current is its first port's
         key_branch.setdefault(b.element.key, b.index)
@@ -1026,12 +1046,13 @@ def _current_weights(
                 mutual.setdefault(a, []).append((b, m_ab))
                 mutual.setdefault(b, []).append((a, m_ab))
     out: list[tuple[int, int, Any]] = []
-    for j, probe in enumerate(probes):
+    for j in through:
+        probe = probes[j]
         if j in held:
             for key, sign in held[j][1]:
                 out.append((j, key_branch[key], sign * values.value(by_key[key])))
                 out.extend((j, key_branch[other], sign * m_ab) for other, m_ab in mutual.get(key, ()))
-        elif probe.kind not in ("v", "x"):
+        else:
             weight: Any = 1
             if probe.kind == "angle":
                 rod = circuit.branches[key_branch[probe.element]].element
