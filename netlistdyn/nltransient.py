@@ -41,6 +41,7 @@ from .netlist import GROUND, Kind, Netlist
 from .nonlinear import NonlinearCircuit
 from .simulate import source_waveform
 from .transient import SourceValues, breakpoints, single_thread
+from .waveforms import Waveform
 
 
 @dataclass(frozen=True)
@@ -73,19 +74,30 @@ class NonlinearRun:
     seconds: float
 
 
+def resolved_waveforms(netlist: Netlist, span: tuple[float, float] | None = None) -> list[Waveform]:
+    """Every source's waveform with SPICE's defaults for ``span`` = (TSTEP, TSTOP) (see NonlinearSystem)."""
+    if span is None:
+        span = (netlist.tran.tstep, netlist.tran.tstop) if netlist.tran is not None else (1.0, 1.0)
+    return [source_waveform(e).resolved(*span) for e in netlist.sources]
+
+
 class NonlinearSystem:
     """x' = f(x, u(t), t) of a netlist, with its Jacobian.
 
     Parameters
     ----------
     netlist : Netlist
+    span : tuple of float, optional
+        (TSTEP, TSTOP) of the transient (s): the SPICE defaults of the source waveforms'
+        omitted times (a PULSE's TR, TF = TSTEP, PW, PER = TSTOP). Default: the netlist's
+        ``.tran``, else 1 s for both (then only ``f`` at a given input means anything).
     """
 
-    def __init__(self, netlist: Netlist) -> None:
+    def __init__(self, netlist: Netlist, span: tuple[float, float] | None = None) -> None:
         self.netlist = netlist
         c = self.circuit = NonlinearCircuit(netlist)
-        self.inputs = SourceValues([source_waveform(e) for e in c.sources])
-        self.waveforms = [source_waveform(e) for e in c.sources]
+        self.waveforms = resolved_waveforms(netlist, span)
+        self.inputs = SourceValues(self.waveforms)
         nc, nl, nd = len(c.capacitors), len(c.inductors), len(c.charged_diodes)
         self.nstates = nc + nl + nd + len(c.disp_index)
         self.offsets = (nc, nc + nl)
@@ -185,13 +197,17 @@ class NonlinearSystem:
             z, its, ok = c.newton(np.zeros(c.size), "state", b, t)
             self.stats["newton"] += its
         if not ok:
-            raise NetlistError(
-                f"nonlinear transient: the resistive network has no solution at t = {t:.6g} s "
-                "(a loop of capacitors and voltage sources, or a cutset of inductors and current sources?)",
-                SourceLocation(self.netlist.path, 0),
-            )
+            raise self._no_solution(t)
         self.z = z
         return z
+
+    def _no_solution(self, t: float) -> NetlistError:
+        return NetlistError(
+            f"nonlinear transient: the resistive network has no solution at t = {t:.6g} s "
+            "(a loop of capacitors, junction capacitances and voltage sources, or a cutset of inductors "
+            "and current sources?)",
+            SourceLocation(self.netlist.path, 0),
+        )
 
     def f(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """x' (C/s, A/s)."""
@@ -220,11 +236,14 @@ class NonlinearSystem:
             cols.append(k)
             vals.append(1.0 / c.charge(e, c._v(z, e.nodes[0]) - c._v(z, e.nodes[1]))[1])
         P = sp.csc_array((vals, (rows, cols)), shape=(c.size, self.nstates))
-        if isinstance(J, np.ndarray):
-            jac = np.asarray(self.S @ np.linalg.solve(J, P.toarray()))
-        else:
-            dz = spla.splu(J.tocsc()).solve(P.toarray())  # one factorisation, every column at once
-            jac = np.asarray(self.S @ dz)
+        try:
+            if isinstance(J, np.ndarray):
+                jac = np.asarray(self.S @ np.linalg.solve(J, P.toarray()))
+            else:
+                dz = spla.splu(J.tocsc()).solve(P.toarray())  # one factorisation, every column at once
+                jac = np.asarray(self.S @ dz)
+        except (np.linalg.LinAlgError, RuntimeError):  # singular: the states are not independent
+            raise self._no_solution(t) from None
         if self._nl_inds:  # rows of i' = v / L(i): d/dx (v/L) = (dv/dx)/L − v L'(i)/L² on its own column
             v = self.S @ z
             for k, store in self._nl_inds:
@@ -303,7 +322,8 @@ def simulate_nonlinear(
     if x0 is not None:
         start, how = initial_state(netlist, x0, x0_names), "the given initial state"
     else:
-        u_start = u0 if u0 is not None else SourceValues([source_waveform(e) for e in netlist.sources])(0.0)
+        span = (float(times[-1]) / max(times.size - 1, 1), float(times[-1]))
+        u_start = u0 if u0 is not None else SourceValues(resolved_waveforms(netlist, span))(0.0)
         start, _, how = nonlinear_start(netlist, u_start)
     used = max(rtol, MIN_RTOL)
     result = run(netlist, outputs, times, used, start, progress, method)
@@ -384,6 +404,7 @@ def run(
     x0: NDArray[np.float64] | None = None,
     progress: Callable[[float], None] | None = None,
     method: str = "BDF",
+    span: tuple[float, float] | None = None,
 ) -> NonlinearRun:
     """Integrate the nonlinear netlist from ``x0`` (default: zero charges and currents).
 
@@ -405,10 +426,15 @@ def run(
         Called with the fraction done.
     method : str
         ``BDF`` or ``Radau`` (scipy), both implicit with error control.
+    span : tuple of float, optional
+        (TSTEP, TSTOP) for the waveforms' SPICE defaults (s); default: the spacing of a uniform
+        ``times`` and its end.
     """
     start = _time.perf_counter()
-    system = NonlinearSystem(netlist)
     times = np.asarray(times, dtype=float)
+    if span is None:
+        span = (float(times[-1]) / max(times.size - 1, 1), float(times[-1]))
+    system = NonlinearSystem(netlist, span)
     tstop = float(times[-1])
     x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float)
     atol = _atol(system, times, rtol)

@@ -304,7 +304,10 @@ def compare(
         from .nltransient import run as run_nonlinear
 
         names = [p.name for p in probes]
-        ours = run_nonlinear(netlist, names, run.time, NONLINEAR_VALIDATE_RTOL, nonlinear_x0).outputs
+        span = (horizon.tstep, horizon.tstop)
+        ours = run_nonlinear(
+            netlist, names, run.time, NONLINEAR_VALIDATE_RTOL, nonlinear_x0, span=span
+        ).outputs
         notes.append(
             "nonlinear netlist: netlistdyn's side is its nonlinear transient "
             f"(BDF, rtol {NONLINEAR_VALIDATE_RTOL:g})"

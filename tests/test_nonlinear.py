@@ -327,3 +327,30 @@ def test_held_charge_reports_the_drift() -> None:
     assert set(point.drift) == {"q(C1)"}
     assert abs(point.drift["q(C1)"] - expected) <= 1e-9 * expected
     assert abs(point.currents["l1"] - 0.2e-3) <= 1e-12
+
+
+def test_omitted_pulse_times_take_spice_defaults() -> None:
+    """PULSE(0 3 1u) is PULSE(0 3 1u TSTEP TSTEP TSTOP TSTOP), as ngspice resolves it (was a TypeError)."""
+    from netlistdyn.nltransient import run
+
+    body = "V1 a 0 PULSE(0 3 1u{})\nR1 a b 1k\nD1 b 0 dm\nC1 b 0 1n\n" + _MODEL
+    times = np.linspace(0.0, 20e-6, 101)  # TSTEP = 0.2 us, TSTOP = 20 us
+    short = run(parse_text("short\n" + body.format("") + ".end\n"), ["v(b)"], times, rtol=1e-6)
+    full = run(
+        parse_text("full\n" + body.format(" 0.2u 0.2u 20u 20u") + ".end\n"), ["v(b)"], times, rtol=1e-6
+    )
+    assert np.abs(short.outputs).max() > 0.5  # the pulse did rise
+    # the same equations and inputs, so the same steps: equal to rounding of the peak
+    assert np.abs(short.outputs - full.outputs).max() <= 1e-12 * np.abs(full.outputs).max()
+    held = operating_point(parse_text("held\n" + body.format("") + ".end\n"), {"q(C1)": 1e-9})
+    assert "q(C1)" in held.drift  # a charge held away from equilibrium moves (no crash)
+
+
+def test_junction_capacitance_loop_is_refused_in_one_line() -> None:
+    """A diode's junction charge (no RS) across a capacitor: a capacitor loop, refused (was LinAlgError)."""
+    from netlistdyn.nltransient import run
+
+    text = "loop\nV1 a 0 PULSE(0 3 1u 0.2u 0.2u 20u 20u)\nR1 a b 1k\nD1 b 0 dm\nC1 b 0 1n\n"
+    text += ".model dm D(IS=2.52n N=1.752 CJO=4p)\n.end\n"
+    with pytest.raises(NetlistError, match="no solution"):
+        run(parse_text(text), ["v(b)"], np.linspace(0.0, 20e-6, 11), rtol=1e-6)
