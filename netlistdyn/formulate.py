@@ -547,13 +547,23 @@ def branch_laws(
             (laws.dv, local.dv),
             (laws.di, local.di),
         ):
-            ours.extend((index[r], index[c], x) for r, c, x in theirs if row is None or r == row)
-        laws.control.extend((index[r], pair, x) for r, pair, x in local.control if row is None or r == row)
-        laws.u.extend((index[r], inputs[key], x) for r, key, x in local.u if row is None or r == row)
+            if theirs:  # most are empty
+                ours.extend((index[r], index[c], x) for r, c, x in theirs if row is None or r == row)
+        if local.control:
+            laws.control.extend(
+                (index[r], pair, x) for r, pair, x in local.control if row is None or r == row
+            )
+        if local.u:
+            laws.u.extend((index[r], inputs[key], x) for r, key, x in local.u if row is None or r == row)
 
+    # Only a transformer's laws (two ports) are kept for its second branch: keeping every
+    # element's made a 10k-element compile spend a second in the garbage collector.
     written: dict[str, ElementLaws] = {}
     for branch in circuit.branches:
         element = branch.element
+        if element.kind is not Kind.TRANSFORMER:
+            place(element_laws(element, value, coupling), (element.key, branch.port))
+            continue
         if element.key not in written:
             written[element.key] = element_laws(element, value, coupling)
         place(written[element.key], (element.key, branch.port))
