@@ -541,20 +541,17 @@ def branch_laws(
 
     def place(local: ElementLaws, row: BranchRef | None) -> None:
         """Append the rows of ``local`` (only ``row`` when given), numbered as branches."""
-        for ours, theirs in (
-            (laws.v, local.v),
-            (laws.i, local.i),
-            (laws.dv, local.dv),
-            (laws.di, local.di),
-        ):
-            if theirs:  # most are empty
-                ours.extend((index[r], index[c], x) for r, c, x in theirs if row is None or r == row)
-        if local.control:
-            laws.control.extend(
-                (index[r], pair, x) for r, pair, x in local.control if row is None or r == row
-            )
-        if local.u:
-            laws.u.extend((index[r], inputs[key], x) for r, key, x in local.u if row is None or r == row)
+        # Plain loops: most lists hold 0 or 1 entries, and this runs once per element.
+        for ours, theirs in ((laws.v, local.v), (laws.i, local.i), (laws.dv, local.dv), (laws.di, local.di)):
+            for r, c, x in theirs:
+                if row is None or r == row:
+                    ours.append((index[r], index[c], x))
+        for r, pair, x in local.control:
+            if row is None or r == row:
+                laws.control.append((index[r], pair, x))
+        for r, key, x in local.u:
+            if row is None or r == row:
+                laws.u.append((index[r], inputs[key], x))
 
     # Only a transformer's laws (two ports) are kept for its second branch: keeping every
     # element's made a 10k-element compile spend a second in the garbage collector.
