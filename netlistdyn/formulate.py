@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -422,11 +422,10 @@ class BranchLaws:
 BranchRef = tuple[str, int]
 
 
-@dataclass(frozen=True)
-class ElementLaws:
+class ElementLaws(NamedTuple):
     """One element's constitutive equations, in the quantities of named branches.
 
-    The same six lists as :class:`BranchLaws`, with :data:`BranchRef` rows
+    The same six fields as :class:`BranchLaws` (tuples), with :data:`BranchRef` rows
     and columns in place of branch indices: row ``(key, port)`` is that
     branch's law; a ``v``/``i``/``dv``/``di`` column names the branch whose
     voltage or current the coefficient multiplies (its own or another's:
@@ -434,12 +433,12 @@ class ElementLaws:
     coupled inductor); a ``u`` column is the key of the independent source.
     """
 
-    v: list[tuple[BranchRef, BranchRef, Any]]
-    i: list[tuple[BranchRef, BranchRef, Any]]
-    dv: list[tuple[BranchRef, BranchRef, Any]]
-    di: list[tuple[BranchRef, BranchRef, Any]]
-    control: list[tuple[BranchRef, tuple[str, str], Any]]
-    u: list[tuple[BranchRef, str, Any]]
+    v: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
+    i: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
+    dv: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
+    di: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
+    control: tuple[tuple[BranchRef, tuple[str, str], Any], ...] = ()
+    u: tuple[tuple[BranchRef, str, Any], ...] = ()
 
 
 def element_laws(
@@ -466,43 +465,42 @@ def element_laws(
     ElementLaws
         A K element gives the two inductors' mutual terms in their rows.
     """
-    laws = ElementLaws([], [], [], [], [], [])
     kind = element.kind
-    own = (element.key, 0)
+    key = element.key
+    own = (key, 0)
     if kind is Kind.RESISTOR:  # v − R i = 0
-        laws.v.append((own, own, 1))
-        laws.i.append((own, own, -value(element)))
-    elif kind is Kind.CAPACITOR:  # i − C v' = 0
-        laws.i.append((own, own, 1))
-        laws.dv.append((own, own, -value(element)))
-    elif kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0
-        laws.v.append((own, own, 1))
-        laws.di.append((own, own, -value(element)))
-    elif kind in (Kind.VSOURCE, Kind.ISOURCE):  # v − u = 0 or i − u = 0
-        (laws.v if kind is Kind.VSOURCE else laws.i).append((own, own, 1))
-        laws.u.append((own, element.key, -1))
-    elif kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
+        return ElementLaws(v=((own, own, 1),), i=((own, own, -value(element)),))
+    if kind is Kind.CAPACITOR:  # i − C v' = 0
+        return ElementLaws(i=((own, own, 1),), dv=((own, own, -value(element)),))
+    if kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0 (the M terms come with K)
+        return ElementLaws(v=((own, own, 1),), di=((own, own, -value(element)),))
+    if kind is Kind.VSOURCE:  # v − u = 0
+        return ElementLaws(v=((own, own, 1),), u=((own, key, -1),))
+    if kind is Kind.ISOURCE:  # i − u = 0
+        return ElementLaws(i=((own, own, 1),), u=((own, key, -1),))
+    if kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
         assert element.control_nodes is not None
-        (laws.v if kind is Kind.VCVS else laws.i).append((own, own, 1))
-        laws.control.append((own, element.control_nodes, -value(element)))
-    elif kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
+        control = ((own, element.control_nodes, -value(element)),)
+        if kind is Kind.VCVS:
+            return ElementLaws(v=((own, own, 1),), control=control)
+        return ElementLaws(i=((own, own, 1),), control=control)
+    if kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
         assert element.control_source is not None
-        (laws.i if kind is Kind.CCCS else laws.v).append((own, own, 1))
-        laws.i.append((own, (element.control_source, 0), -value(element)))
-    elif kind is Kind.TRANSFORMER:
+        gain = (own, (element.control_source, 0), -value(element))
+        if kind is Kind.CCCS:
+            return ElementLaws(i=((own, own, 1), gain))
+        return ElementLaws(v=((own, own, 1),), i=(gain,))
+    if kind is Kind.TRANSFORMER:
         # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
-        second = (element.key, 1)
+        second = (key, 1)
         n = value(element)
-        laws.v.extend([(own, own, 1), (own, second, -n)])
-        laws.i.extend([(second, second, 1), (second, own, n)])
-    elif kind is Kind.COUPLING:  # −M i'_b in L_a's law, −M i'_a in L_b's
+        return ElementLaws(v=((own, own, 1), (own, second, -n)), i=((second, second, 1), (second, own, n)))
+    if kind is Kind.COUPLING:  # −M i'_b in L_a's law, −M i'_a in L_b's
         assert element.coupled is not None
         a, b = ((name, 0) for name in element.coupled)
         m = mutual(element)
-        laws.di.extend([(a, b, -m), (b, a, -m)])
-    else:  # pragma: no cover - the parser admits no other linear kinds
-        raise AssertionError(kind)
-    return laws
+        return ElementLaws(di=((a, b, -m), (b, a, -m)))
+    raise AssertionError(kind)  # pragma: no cover - the parser admits no other linear kinds
 
 
 def branch_laws(
@@ -539,34 +537,29 @@ def branch_laws(
         a, b = element.coupled
         return mutual(element, inductor[a], inductor[b])
 
-    def place(local: ElementLaws, row: BranchRef | None) -> None:
-        """Append the rows of ``local`` (only ``row`` when given), numbered as branches."""
-        # Plain loops: most lists hold 0 or 1 entries, and this runs once per element.
-        for ours, theirs in ((laws.v, local.v), (laws.i, local.i), (laws.dv, local.dv), (laws.di, local.di)):
-            for r, c, x in theirs:
-                if row is None or r == row:
-                    ours.append((index[r], index[c], x))
-        for r, pair, x in local.control:
-            if row is None or r == row:
-                laws.control.append((index[r], pair, x))
-        for r, key, x in local.u:
-            if row is None or r == row:
-                laws.u.append((index[r], inputs[key], x))
+    v, i, dv, di, control, u = laws.v, laws.i, laws.dv, laws.di, laws.control, laws.u
 
-    # Only a transformer's laws (two ports) are kept for its second branch: keeping every
-    # element's made a 10k-element compile spend a second in the garbage collector.
-    written: dict[str, ElementLaws] = {}
+    def place(local: ElementLaws) -> None:
+        """Append every row of ``local``, numbered as branches (a loop per list: most are empty)."""
+        for r, c, x in local.v:
+            v.append((index[r], index[c], x))
+        for r, c, x in local.i:
+            i.append((index[r], index[c], x))
+        for r, c, x in local.dv:
+            dv.append((index[r], index[c], x))
+        for r, c, x in local.di:
+            di.append((index[r], index[c], x))
+        for r, pair, x in local.control:
+            control.append((index[r], pair, x))
+        for r, key, x in local.u:
+            u.append((index[r], inputs[key], x))
+
     for branch in circuit.branches:
-        element = branch.element
-        if element.kind is not Kind.TRANSFORMER:
-            place(element_laws(element, value, coupling), (element.key, branch.port))
-            continue
-        if element.key not in written:
-            written[element.key] = element_laws(element, value, coupling)
-        place(written[element.key], (element.key, branch.port))
+        if branch.port == 0:  # a transformer's laws give the rows of both its ports
+            place(element_laws(branch.element, value, coupling))
     for element in netlist.elements:
         if element.kind is Kind.COUPLING:
-            place(element_laws(element, value, coupling), None)
+            place(element_laws(element, value, coupling))
     return laws
 
 

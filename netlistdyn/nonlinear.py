@@ -357,7 +357,7 @@ def _element_law(e: Element, keyed: Mapping[str, Element]) -> ElementLaws | None
     if e.kind in STORAGE_KINDS:
         return element_laws(replace(e, kind=_LINEAR_FORM[e.kind]), value, mutual)
     if e.kind is Kind.BVOLTAGE:
-        return ElementLaws([((e.key, 0), (e.key, 0), 1.0)], [], [], [], [], [])
+        return ElementLaws(v=(((e.key, 0), (e.key, 0), 1.0),))
     return None
 
 
