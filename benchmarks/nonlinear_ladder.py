@@ -6,8 +6,9 @@ scored by its largest error on v(n1), v(n2) and v(nN) over 101 grid times,
 relative to the largest peak, against a reference: ngspice at tight settings (Gear, reltol
 1e-8, maximum step tstop/50000). ngspice is given a 0 V PWL source with a
 corner at every grid time, so its own time points include the grid (no
-interpolation). ngspice runs in batch (``ngspice -b``), timed from outside
-(start-up included); netlistdyn's time is that of ``nltransient.run``.
+interpolation). ngspice runs in batch (``ngspice -b``), as a child whose own CPU time
+(``processes.run_program``) and wall time are reported, start-up included; netlistdyn's
+are those of ``nltransient.run`` in this process (CPU: ``time.process_time``).
 
     python benchmarks/nonlinear_ladder.py [--stages 10,100,1000]
 """
@@ -16,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from netlistdyn.nltransient import run
 from netlistdyn.parser import parse_text
+from netlistdyn.processes import run_program
 
 MODEL = ".model dm D(IS=2.52n N=1.752 RS=0.568 CJO=4p M=0.4 TT=20n)\n"
 TSTOP = 50e-6
@@ -44,8 +45,8 @@ def ladder(stages: int) -> str:
 
 def ngspice(
     text: str, outputs: list[str], grid: np.ndarray, options: str, maxstep: float
-) -> tuple[np.ndarray, float]:
-    """ngspice -b on the ladder; (values at the grid, wall seconds)."""
+) -> tuple[np.ndarray, float, float]:
+    """ngspice -b on the ladder; (values at the grid, CPU seconds, wall seconds)."""
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "out.txt"
         pwl = " ".join(f"{t:.12g} 0" for t in grid)
@@ -57,13 +58,11 @@ def ngspice(
         )
         path = Path(tmp) / "deck.cir"
         path.write_text(deck)
-        start = time.perf_counter()
-        subprocess.run(["ngspice", "-b", str(path)], capture_output=True, timeout=3600, check=False)
-        seconds = time.perf_counter() - start
+        done = run_program(["ngspice", "-b", str(path)], timeout=3600)
         table = np.loadtxt(data)
     times = table[:, 0]
     rows = [int(np.argmin(np.abs(times - t))) for t in grid]
-    return np.column_stack([table[rows, 2 * k + 1] for k in range(len(outputs))]), seconds
+    return np.column_stack([table[rows, 2 * k + 1] for k in range(len(outputs))]), done.cpu, done.wall
 
 
 def score(values: np.ndarray, ref: np.ndarray) -> float:
@@ -78,12 +77,12 @@ def main() -> None:
     args = parser.parse_args()
     grid = np.linspace(0.0, TSTOP, POINTS + 1)
     print(f"load: {os.getloadavg()[0]:.1f} (2 cores)")
-    print("| stages | run | setting | error / peak | seconds |")
-    print("|---:|---|---|---:|---:|")
+    print("| stages | run | setting | error / peak | CPU [s] | wall [s] |")
+    print("|---:|---|---|---:|---:|---:|")
     for stages in (int(s) for s in args.stages.split(",")):
         text = ladder(stages)
         outputs = ["v(n1)", "v(n2)", f"v(n{stages})"]
-        ref, ref_seconds = ngspice(
+        ref, ref_cpu, ref_wall = ngspice(
             text,
             outputs,
             grid,
@@ -92,7 +91,7 @@ def main() -> None:
         )
         print(
             f"| {stages} | ngspice (reference) | gear, reltol 1e-8, max step tstop/50000 | — "
-            f"| {ref_seconds:.3g} |"
+            f"| {ref_cpu:.3g} | {ref_wall:.3g} |"
         )
         for label, options, maxstep in (
             ("trap, defaults", "", TSTOP / POINTS),
@@ -102,18 +101,18 @@ def main() -> None:
                 TSTOP / 5000,
             ),
         ):
-            values, seconds = ngspice(text, outputs, grid, options or "reltol=1e-3", maxstep)
-            print(f"| {stages} | ngspice -b | {label} | {score(values, ref):.2g} | {seconds:.3g} |")
+            values, cpu, wall = ngspice(text, outputs, grid, options or "reltol=1e-3", maxstep)
+            print(f"| {stages} | ngspice -b | {label} | {score(values, ref):.2g} | {cpu:.3g} | {wall:.3g} |")
         netlist = parse_text(text + ".end\n")
         for rtol in (1e-3, 1e-5, 1e-7):
             if stages >= 1000 and rtol < 1e-5:
                 continue
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             result = run(netlist, outputs, grid, rtol=rtol)
-            seconds = time.perf_counter() - start
+            wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
             print(
                 f"| {stages} | netlistdyn (BDF) | rtol {rtol:g} | {score(result.outputs, ref):.2g} "
-                f"| {seconds:.3g} |"
+                f"| {cpu:.3g} | {wall:.3g} |"
             )
         sys.stdout.flush()
 
