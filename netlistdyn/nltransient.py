@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 import time as _time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -162,10 +163,18 @@ class NonlinearSystem:
             return None
         G = c.linear_matrix("state")
         try:
-            if c.size <= 60:
-                return ("dense", scipy.linalg.lu_factor(G.toarray(), check_finite=True))
-            return ("sparse", spla.splu(G.tocsc()))
-        except (RuntimeError, ValueError, np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+            with warnings.catch_warnings():  # an exactly singular matrix: no factorisation to reuse
+                warnings.simplefilter("error", scipy.linalg.LinAlgWarning)
+                if c.size <= 60:
+                    return ("dense", scipy.linalg.lu_factor(G.toarray(), check_finite=True))
+                return ("sparse", spla.splu(G.tocsc()))
+        except (
+            RuntimeError,
+            ValueError,
+            np.linalg.LinAlgError,
+            scipy.linalg.LinAlgError,
+            scipy.linalg.LinAlgWarning,
+        ):
             return None
 
     def _solve_fixed(self, rhs: NDArray[np.float64]) -> NDArray[np.float64]:
