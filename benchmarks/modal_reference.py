@@ -63,26 +63,20 @@ def nodal_system(nodes: list[str], elements: list[tuple[str, ...]]):
     unknown = [n for n in nodes if n not in supplies]
     index = {n: k for k, n in enumerate(unknown)}
     size = len(unknown)
-    rows, cols, vals = [], [], []
+    # Resistors through the incidence matrix: G = N diag(g) Nᵀ over every node, supplies included.
+    every = {n: k for k, n in enumerate([*unknown, *supplies])}
+    ends: list[tuple[int, int]] = []
+    conductance: list[float] = []
     cap = np.zeros(size)
-    b_v = np.zeros(size)
     loads: list[tuple[int, np.ndarray, np.ndarray]] = []
     for e in elements:
         kind = e[0][0].upper()
         a, b = e[1], e[2]
         if kind == "R":
-            g = 1.0 / float(e[3])
-            for p, q in ((a, b), (b, a)):
-                if p in index:
-                    rows.append(index[p])
-                    cols.append(index[p])
-                    vals.append(g)
-                    if q in index:
-                        rows.append(index[p])
-                        cols.append(index[q])
-                        vals.append(-g)
-                    elif q in supplies:
-                        b_v[index[p]] += g * supplies[q]
+            if "0" in (a, b):
+                raise ValueError(f"a grid resistor joins two nodes: {' '.join(e)}")
+            ends.append((every[a], every[b]))
+            conductance.append(1.0 / float(e[3]))
         elif kind == "C":
             if b != "0" or a not in index:
                 raise ValueError(f"a grid capacitor goes from a node to ground: {' '.join(e)}")
@@ -94,7 +88,14 @@ def nodal_system(nodes: list[str], elements: list[tuple[str, ...]]):
             loads.append((index[a], pairs[:, 0], pairs[:, 1]))
     if np.any(cap <= 0):
         raise ValueError("every grid node needs a capacitor for the modal form")
-    G = sp.csr_array((vals, (rows, cols)), shape=(size, size)).toarray()
+    branches = np.arange(len(ends))
+    incidence = sp.csr_array(
+        (np.repeat([1.0, -1.0], len(ends)), (np.concatenate(np.array(ends).T), np.tile(branches, 2))),
+        shape=(len(every), len(ends)),
+    )
+    full = (incidence @ sp.diags_array(np.array(conductance)) @ incidence.T).tocsr()
+    G = full[:size, :size].toarray()
+    b_v = -full[:size, size:] @ np.array(list(supplies.values()))
     P = np.zeros((size, len(loads)))
     for j, (k, _, _) in enumerate(loads):
         P[k, j] = 1.0  # the load's current leaves its node
