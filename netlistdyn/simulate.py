@@ -225,6 +225,8 @@ class FohPropagator:
         self._modal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.balance = np.ones(self.n)  # the diagonal balancing of A (powers of two)
         self.refined = False  # True once the eigendecomposition comes from mpmath
+        #: C·V at the refined precision, rounded once (None until :meth:`refine_modal` is given C).
+        self.seen: NDArray[np.complex128] | None = None
         if self.n:
             try:
                 # Balance first (a diagonal similarity by powers of two, exact): element values
@@ -241,13 +243,17 @@ class FohPropagator:
             except (np.linalg.LinAlgError, ValueError):
                 self._modal = None
 
-    def refine_modal(self) -> bool:
+    def refine_modal(self, C: NDArray[np.float64] | None = None) -> bool:
         """Recompute the eigendecomposition with mpmath at :data:`MODAL_REFINE_DIGITS` digits.
 
-        λ, V, V⁻¹ and V⁻¹B are then each rounded once to double, so every entry
-        is right to eps relative — also the small components of eigenvectors that
-        double-precision LAPACK gets right only normwise. False (nothing changed)
-        when mpmath fails or the eigenvectors are not independent.
+        λ, V, V⁻¹, V⁻¹B and (given the output matrix C) C·V are then each
+        rounded once to double, so every entry is right to eps relative — also
+        the small components of eigenvectors that double-precision LAPACK gets
+        right only normwise, and a C·vᵢ that is a near-cancellation of V's
+        entries (v(n4) = 2200·(i(L0) − i(L2) − i(L3)) on a null vector: 5e-14
+        formed in double, ~1e-24 exactly, beside a modal coordinate of 2e17).
+        False (nothing changed) when mpmath fails or the eigenvectors are not
+        independent.
         """
         import mpmath as mp
 
@@ -257,6 +263,10 @@ class FohPropagator:
                 values, right = mp.eig(a)
                 inv = mp.inverse(right)
                 inv_b = inv * mp.matrix(self.B.tolist())
+                seen = None
+                if C is not None and C.size:
+                    cv = mp.matrix(np.asarray(C, dtype=float).tolist()) * right
+                    seen = np.array([[complex(cv[i, j]) for j in range(self.n)] for i in range(cv.rows)])
                 lam = np.array([complex(v) for v in values])
                 vecs = np.array([[complex(right[i, j]) for j in range(self.n)] for i in range(self.n)])
                 left = np.array([[complex(inv[i, j]) for j in range(self.n)] for i in range(self.n)])
@@ -265,7 +275,10 @@ class FohPropagator:
             return False
         if not (np.all(np.isfinite(vecs)) and np.all(np.isfinite(left))):
             return False
+        if seen is not None and not np.all(np.isfinite(seen)):
+            return False
         self._modal = (lam, vecs, left, forced.reshape(self.n, self.m))
+        self.seen = seen
         self.balance = np.ones(self.n)
         self.refined = True
         return True
@@ -424,16 +437,19 @@ def propagate_foh(
     if prop.modal:
         # An unstable model may overflow: the non-finite result is reported by the caller.
         with np.errstate(over="ignore", invalid="ignore"):
-            xs, zmax = _modal_at_times(prop, signals, times, x0, progress)
+            xs, zmax, _ = _modal_at_times(prop, signals, times, x0, progress)
             y = _outputs_at(model, signals, times, xs)
             error = _modal_error(prop, model, signals, times, x0, zmax, y)
         if error <= rtol or not np.all(np.isfinite(y)):
             return FohResult(y, xs, error, "modal", bool(error <= rtol))
         note = f"modal evaluation's error estimate {error:.1g} of the peak exceeds {rtol:g}; "
-        if 0 < prop.n <= MODAL_REFINE_LIMIT and prop.refine_modal():
+        if 0 < prop.n <= MODAL_REFINE_LIMIT and prop.refine_modal(model.C):
             with np.errstate(over="ignore", invalid="ignore"):
-                xs, zmax = _modal_at_times(prop, signals, times, x0, progress)
-                y = _outputs_at(model, signals, times, xs)
+                xs, zmax, observed = _modal_at_times(prop, signals, times, x0, progress)
+                # The outputs from the refined C·V and the modal coordinates, not from the states:
+                # C·x in double loses what cancels between large state components.
+                y = _outputs_at(model, signals, times, np.zeros_like(xs))
+                y = y + (observed if observed is not None else xs @ model.C.T)
                 error = _modal_error(prop, model, signals, times, x0, zmax, y)
             message = (
                 note + f"eigendecomposition recomputed at {MODAL_REFINE_DIGITS} digits: estimate {error:.1g}"
@@ -459,6 +475,20 @@ def _peaks(y: NDArray[np.float64]) -> NDArray[np.float64]:
     if y.size == 0:
         return np.ones(y.shape[1] if y.ndim == 2 else 0)
     return np.maximum(np.max(np.abs(y), axis=0), np.finfo(float).tiny)
+
+
+def _trusted_peaks(y: NDArray[np.float64], absolute: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each output's peak less its estimated absolute error (``absolute``, one per output).
+
+    The estimate is relative to the true peak, which the computed one exceeds
+    by up to the error itself: a result whose error is its whole peak (a
+    cancellation lost) must not be judged against that peak. Zero (the
+    relative error infinite) when the error may be the whole peak.
+    """
+    peaks = _peaks(y)
+    with np.errstate(invalid="ignore"):
+        trusted = np.where(absolute < peaks, peaks - absolute, 0.0)
+    return np.maximum(trusted, np.finfo(float).tiny)
 
 
 def _modal_error(
@@ -497,12 +527,18 @@ def _modal_error(
     if prop.refined:
         # λ, V, V⁻¹B and CV are the 40-digit values rounded once: each entry is within eps
         # relative, so what remains is rounding in the evaluation and the sum's cancellation.
+        # (CV must be the refined one the outputs were formed with: C @ V in double is off by
+        # eps‖C‖‖vᵢ‖, which a large |zᵢ| turns into any error at all.) z0 = V⁻¹x0 is formed in
+        # double: eps |V⁻¹||x0| per mode.
+        seen = prop.seen if prop.seen is not None else model.C @ vecs
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             memory = np.where(lam.real < 0, np.minimum(horizon, 1.0 / np.abs(lam.real)), horizon)
             recurrence = np.minimum(steps, memory / spacing + 1) if spacing > 0 else 0.0
             dz = (8 * eps + eps * np.abs(lam) * memory + eps * recurrence) * zmax
-            absolute = np.abs(model.C @ vecs) @ dz
-            worst = float(np.max(absolute / _peaks(y)))
+            if x0 is not None:
+                dz = dz + 2 * prop.n * eps * (np.abs(inv) @ np.abs(np.asarray(x0, dtype=float)))
+            absolute = np.abs(seen) @ dz
+            worst = float(np.max(absolute / _trusted_peaks(y, absolute)))
         return worst if math.isfinite(worst) else math.inf
     t = prop.balance
     vb = vecs / t[:, None]  # balanced eigenvectors
@@ -534,7 +570,7 @@ def _modal_error(
         dz = eps * wnorm * (forcing * memory + start) + (dlam * memory + 8 * eps + eps * recurrence) * zmax
         cv = np.abs(cb @ vb)
         absolute = cv @ dz + eps * (np.linalg.norm(cb, axis=1)[:, None] * vnorm[None, :]) @ zmax
-        relative = absolute / _peaks(y)
+        relative = absolute / _trusted_peaks(y, absolute)
     worst = float(np.max(relative)) if relative.size else 0.0
     return worst if math.isfinite(worst) else math.inf
 
@@ -717,10 +753,12 @@ def _modal_at_times(
     times: NDArray[np.float64],
     x0: NDArray[np.float64] | None,
     progress: Callable[[float], None] | None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
     """States at many times: exact modal propagation along a coarse grid, then to each time.
 
-    Returns the states ``(len(times), n)`` and each mode's largest |z| seen.
+    Returns the states ``(len(times), n)``, each mode's largest |z| seen, and,
+    when the propagator holds a refined C·V (``prop.seen``), Re(C·V z) at the
+    times (the outputs without their feedthrough), else None.
 
     In modal coordinates z = V⁻¹x every mode is a scalar equation. Each input
     is split into exponential terms c·e^{μ(t−start)} (SIN, EXP) and a
@@ -742,9 +780,10 @@ def _modal_at_times(
     grid = refine_grid(coarse, signals, smooth=False)
     m = inv_b.shape[1]
     z0 = np.zeros(lam.size, dtype=complex) if x0 is None else inv @ np.asarray(x0, dtype=float)
+    seen = prop.seen
     if grid.size == 1:
-        zs = z0[None, :].astype(complex)
-        return np.real(np.repeat(zs, times.size, axis=0) @ vecs.T), np.abs(z0)
+        zs = np.repeat(z0[None, :].astype(complex), times.size, axis=0)
+        return np.real(zs @ vecs.T), np.abs(z0), None if seen is None else np.real(zs @ seen.T)
     starts, ends = grid[:-1], grid[1:]
     active = terms.active(starts)
     left = (signals(starts) - terms.values(starts, active, m)) @ inv_b.T
@@ -753,6 +792,7 @@ def _modal_at_times(
     zs = _modal_grid_states(lam, grid, left, right, forced, z0.astype(complex))
     zmax = np.max(np.abs(zs), axis=0)
     out = np.empty((times.size, lam.size))
+    observed = None if seen is None else np.empty((times.size, seen.shape[0]))
     block = max(1, MODAL_BLOCK_ENTRIES // max(lam.size, 1))
     for first in range(0, times.size, block):
         t = times[first : first + block]
@@ -767,10 +807,12 @@ def _modal_at_times(
             + _forced_response(lam, terms, inv_b, grid[k], tau, active[k])
         )
         out[first : first + t.size] = np.real(z_t @ vecs.T)
+        if observed is not None:
+            observed[first : first + t.size] = np.real(z_t @ seen.T)
         zmax = np.maximum(zmax, np.max(np.abs(z_t), axis=0))
         if progress is not None:
             progress(min(1.0, (first + t.size) / times.size))
-    return out, zmax
+    return out, zmax, observed
 
 
 def _forced_response(
