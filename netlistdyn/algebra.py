@@ -22,6 +22,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any, Protocol
 
 import numpy as np
@@ -357,3 +358,180 @@ def _check_finite(netlist: Netlist, matrices: dict[str, sp.csr_array]) -> None:
         f"({', '.join(bad)} would hold infinite entries); use values within about 1e-150…1e150",
         worst.loc,
     )
+
+
+# --- exact rational arithmetic on the parsed doubles ------------------------------------------
+
+
+class RationalMatrix:
+    """A sparse matrix of exact rationals (``fractions.Fraction``): entries by position.
+
+    Supports what :func:`netlistdyn.formulate.reduce` does with matrices:
+    ``+``, ``-``, unary ``-``, ``@``, ``shape`` and ``m[:, a:b]`` slices.
+    """
+
+    __slots__ = ("entries", "shape")
+
+    def __init__(self, entries: dict[tuple[int, int], Fraction], shape: tuple[int, int]) -> None:
+        self.entries = {k: v for k, v in entries.items() if v}
+        self.shape = shape
+
+    def __add__(self, other: RationalMatrix) -> RationalMatrix:
+        out = dict(self.entries)
+        for k, v in other.entries.items():
+            out[k] = out.get(k, 0) + v
+        return RationalMatrix(out, self.shape)
+
+    def __sub__(self, other: RationalMatrix) -> RationalMatrix:
+        return self + (-other)
+
+    def __neg__(self) -> RationalMatrix:
+        return RationalMatrix({k: -v for k, v in self.entries.items()}, self.shape)
+
+    def __matmul__(self, other: RationalMatrix) -> RationalMatrix:
+        by_row: dict[int, list[tuple[int, Fraction]]] = {}
+        for (r, c), v in other.entries.items():
+            by_row.setdefault(r, []).append((c, v))
+        out: dict[tuple[int, int], Fraction] = {}
+        for (i, k), a in self.entries.items():
+            for j, b in by_row.get(k, ()):
+                out[(i, j)] = out.get((i, j), 0) + a * b
+        return RationalMatrix(out, (self.shape[0], other.shape[1]))
+
+    def __getitem__(self, key: tuple[slice, slice]) -> RationalMatrix:
+        rows, cols = (range(n)[s] for s, n in zip(key, self.shape, strict=True))
+        return self.pick(rows, cols)
+
+    def pick(self, rows: Sequence[int], cols: Sequence[int]) -> RationalMatrix:
+        """The submatrix of the given rows and columns, in that order."""
+        row_at = {int(r): k for k, r in enumerate(rows)}
+        col_at = {int(c): k for k, c in enumerate(cols)}
+        out = {(row_at[r], col_at[c]): v for (r, c), v in self.entries.items() if r in row_at and c in col_at}
+        return RationalMatrix(out, (len(row_at), len(col_at)))
+
+    def to_float(self) -> sp.csr_array:
+        """The correctly rounded doubles (``float(Fraction)`` rounds to nearest)."""
+        if not self.entries:
+            return sp.csr_array(self.shape)
+        rows = [r for r, _ in self.entries]
+        cols = [c for _, c in self.entries]
+        vals = [float(v) for v in self.entries.values()]
+        return sp.csr_array((vals, (rows, cols)), shape=self.shape)
+
+
+@dataclass(frozen=True)
+class ExactRationals:
+    """The exact :class:`Algebra` over the rationals: the doubles of the netlist, taken exactly.
+
+    Every operation is exact (``fractions.Fraction``), so the reduction's result,
+    rounded once at the end (:meth:`RationalMatrix.to_float`), is the correctly
+    rounded model of the parsed values: no entry suffers the cancellation that
+    floating-point elimination meets where element values span decades. The
+    questions the numeric algebra answers to rounding (which tree, higher
+    index) have been decided by the numeric compile on the same tree; a
+    product that must vanish is checked to vanish exactly. Derivatives of
+    resistive unknowns are left to the numeric algebra (NotSupportedError).
+    The cost grows fast with the circuit: see :data:`EXACT_BRANCH_LIMIT`.
+    """
+
+    def triplets(self, entries: Sequence[tuple[int, int, Any]], shape: tuple[int, int]) -> RationalMatrix:
+        out: dict[tuple[int, int], Fraction] = {}
+        for row, col, coeff in entries:
+            out[(row, col)] = out.get((row, col), 0) + Fraction(coeff)
+        return RationalMatrix(out, shape)
+
+    def topology(self, matrix: sp.csr_array) -> RationalMatrix:
+        coo = matrix.tocoo()
+        entries = [
+            (int(r), int(c), round(float(v))) for r, c, v in zip(coo.row, coo.col, coo.data, strict=True)
+        ]
+        return self.triplets(entries, coo.shape)
+
+    def zeros(self, rows: int, cols: int) -> RationalMatrix:
+        return RationalMatrix({}, (rows, cols))
+
+    def rows(self, matrix: RationalMatrix, index: Sequence[int]) -> RationalMatrix:
+        return matrix.pick(index, range(matrix.shape[1]))
+
+    def cols(self, matrix: RationalMatrix, index: Sequence[int]) -> RationalMatrix:
+        return matrix.pick(range(matrix.shape[0]), index)
+
+    def hstack(self, blocks: Sequence[RationalMatrix]) -> RationalMatrix:
+        out: dict[tuple[int, int], Fraction] = {}
+        offset = 0
+        for block in blocks:
+            out.update({(r, c + offset): v for (r, c), v in block.entries.items()})
+            offset += block.shape[1]
+        return RationalMatrix(out, (blocks[0].shape[0] if blocks else 0, offset))
+
+    def vstack(self, blocks: Sequence[RationalMatrix]) -> RationalMatrix:
+        out: dict[tuple[int, int], Fraction] = {}
+        offset = 0
+        for block in blocks:
+            out.update({(r + offset, c): v for (r, c), v in block.entries.items()})
+            offset += block.shape[0]
+        return RationalMatrix(out, (offset, blocks[0].shape[1] if blocks else 0))
+
+    def diag(self, values: Sequence[Any], inverse: bool = False) -> RationalMatrix:
+        exact = [Fraction(v) for v in values]
+        return RationalMatrix(
+            {(k, k): 1 / v if inverse else v for k, v in enumerate(exact)}, (len(exact),) * 2
+        )
+
+    def clean(self, matrix: RationalMatrix) -> RationalMatrix:
+        return matrix
+
+    def nonzero(self, matrix: RationalMatrix) -> bool:
+        return bool(matrix.entries)
+
+    def cancelled(self, base: RationalMatrix, left: RationalMatrix, right: RationalMatrix) -> RationalMatrix:
+        return base - left @ right
+
+    def negligible(self, left: RationalMatrix, right: RationalMatrix) -> bool:
+        return not (left @ right).entries
+
+    def solve(self, matrix: RationalMatrix, rhs: RationalMatrix, what: str) -> RationalMatrix:
+        """matrix⁻¹ rhs by Gaussian elimination on sparse rows (exact: any nonzero pivot)."""
+        n = matrix.shape[0]
+        rows: list[dict[int, Fraction]] = [{} for _ in range(n)]
+        right: list[dict[int, Fraction]] = [{} for _ in range(n)]
+        for (r, c), v in matrix.entries.items():
+            rows[r][c] = v
+        for (r, c), v in rhs.entries.items():
+            right[r][c] = v
+        order: list[int] = []  # pivot row of each column
+        used: set[int] = set()
+        for col in range(n):
+            pivot = next((r for r in range(n) if r not in used and rows[r].get(col)), None)
+            if pivot is None:
+                raise SingularCircuitError(what)
+            order.append(pivot)
+            used.add(pivot)
+            prow, pright, p = rows[pivot], right[pivot], rows[pivot][col]
+            for r in range(n):
+                factor = rows[r].get(col) if r != pivot else None
+                if not factor:
+                    continue
+                factor = factor / p
+                for target, source in ((rows[r], prow), (right[r], pright)):
+                    for c, v in source.items():
+                        value = target.get(c, 0) - factor * v
+                        if value:
+                            target[c] = value
+                        else:
+                            target.pop(c, None)
+        out: dict[tuple[int, int], Fraction] = {}
+        for col, r in enumerate(order):
+            p = rows[r][col]
+            out.update({(col, c): v / p for c, v in right[r].items()})
+        return RationalMatrix(out, (n, rhs.shape[1]))
+
+    def algebraic_derivatives(self, block: Block, involved: Sequence[str], netlist: Netlist) -> Block:
+        raise NotSupportedError("exact reduction: derivatives of resistive unknowns", netlist.elements[0].loc)
+
+    def check_finite(self, netlist: Netlist, matrices: dict[str, Any]) -> None:
+        return None  # rationals do not overflow; the rounding at the end is checked instead
+
+
+#: The exact algebra (stateless).
+EXACT = ExactRationals()
