@@ -32,8 +32,8 @@ from netlistdyn.symbolic import symbolic_model  # noqa: E402
 ROUNDING = 2.0**-53
 
 #: Draws of ``random_network(default_rng(1), spread=False)`` whose floating-point A printed a wrong
-#: 6th significant digit (122, 167, 170; benchmarks/entrywise_accuracy.py), and some others.
-DRAWS = [0, 1, 2, 3, 4, 5, 6, 7, 122, 167, 170]
+#: 6th significant digit (122, 167, 170; benchmarks/entrywise_accuracy.py), and the first ones without a K.
+DRAWS = [0, 1, 2, 3, 5, 6, 7, 9, 122, 167, 170]
 
 
 def _draw(k: int) -> str:
