@@ -26,11 +26,12 @@ sys.path.insert(0, str(ROOT))
 
 from netlistdyn import formulate  # noqa: E402
 from netlistdyn.algebra import EXACT, NUMERIC  # noqa: E402
+from netlistdyn.netlist import Netlist  # noqa: E402
 from netlistdyn.parser import parse_file, parse_text  # noqa: E402
 from tests.random_networks import random_network  # noqa: E402
 
 
-def both(netlist):
+def both(netlist: Netlist) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(floating-point A, exact A rounded, exact CPU s, branches) on the numeric compile's tree."""
     form = formulate.formulate(netlist)
     args = (form.netlist, form.circuit, form.tree, form.probes)

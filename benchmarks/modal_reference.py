@@ -57,7 +57,9 @@ def read_grid(text: str) -> tuple[list[str], list[tuple[str, ...]]]:
     return nodes, elements
 
 
-def nodal_system(nodes: list[str], elements: list[tuple[str, ...]]):
+def nodal_system(
+    nodes: list[str], elements: list[tuple[str, ...]]
+) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
     """G, C (diagonal, F), the DC right-hand side b_V and the load matrix P with the PWL tables."""
     supplies = {e[1]: float(e[3]) for e in elements if e[0][0].upper() == "V" and e[2] == "0"}
     unknown = [n for n in nodes if n not in supplies]

@@ -46,15 +46,11 @@ def _draw(k: int) -> str:
 @pytest.mark.parametrize("k", DRAWS)
 def test_every_entry_is_correctly_rounded(k: int) -> None:
     text = _draw(k)
-    if "K1" in text:  # M = k·sqrt(La·Lb) has no exact rational value
-        pytest.skip("a coupling's mutual inductance is irrational")
+    assert "K1" not in text  # the draws have no coupling: M = k·sqrt(La·Lb) has no exact rational value
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         netlist = parse_text(text)
-        try:
-            model = compile_netlist(netlist)
-        except Exception as exc:
-            pytest.skip(f"not compiled: {exc}")
+        model = compile_netlist(netlist)
     symbolic = symbolic_model(netlist)
     exact_values = {sym: sympy.Rational(value) for sym, value in symbolic.symbols.values()}
     for name in ("A", "B", "C", "D"):
@@ -62,7 +58,7 @@ def test_every_entry_is_correctly_rounded(k: int) -> None:
         ours = getattr(model, name)
         for (i, j), value in np.ndenumerate(ours):
             exact = reference[i, j]
-            if exact == 0:
+            if exact == 0:  # the correct rounding of an exact zero is 0.0 itself: no tolerance applies
                 assert value == 0, (name, i, j, value)
             else:
                 error = abs(sympy.Rational(float(value)) - exact) / abs(exact)
