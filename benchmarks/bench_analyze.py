@@ -21,9 +21,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from ladder import ladder_netlist
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 
 
 def median_time(func, repeats: int) -> tuple[float, object]:

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import FohPropagator, input_signals, simulate_foh
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.simulation.foh import FohPropagator, input_signals, simulate_foh
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ("circuit2", "dipc", "servo_shaft", "two_blocks", "controlled", "waveforms", "cap_loop")

@@ -34,15 +34,15 @@ sys.path.insert(0, str(ROOT))
 
 from powergrid import grid_netlist, probe_nodes  # noqa: E402
 
-from netlistdyn.processes import run_program  # noqa: E402
+from netlistdyn.base.processes import run_program  # noqa: E402
 
 OURS = r"""
 import json, sys, time
 import numpy as np
-from netlistdyn.descriptor import assemble
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import source_waveform
-from netlistdyn.transient import run_transient
+from netlistdyn.formulation.descriptor import assemble
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.simulation.transient import run_transient
 import resource
 path, rtol, outs, target = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[4]
 method, _, sub = sys.argv[5].partition("/")
@@ -64,10 +64,11 @@ RADAU = r"""
 import json, sys
 import numpy as np, scipy.sparse as sp
 from scipy.integrate import solve_ivp
-from netlistdyn.descriptor import assemble
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import source_waveform
-from netlistdyn.transient import SourceValues, breakpoints, dc_operating_point
+from netlistdyn.formulation.descriptor import assemble
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.simulation.transient import dc_operating_point
+from netlistdyn.circuit.sources import SourceValues, breakpoints
 path, rtol, outs, target = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[4]
 netlist = parse_file(path)
 system = assemble(netlist, outs)
@@ -100,10 +101,10 @@ print(json.dumps({"status": "ok" if k == times.size else "incomplete"}))
 EXACT = r"""
 import json, sys
 import numpy as np, scipy.linalg as sl
-from netlistdyn.descriptor import assemble
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import source_waveform
-from netlistdyn.transient import SourceValues, breakpoints
+from netlistdyn.formulation.descriptor import assemble
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.circuit.sources import SourceValues, breakpoints
 path, outs, target = sys.argv[1], sys.argv[2].split(","), sys.argv[3]
 netlist = parse_file(path)
 system = assemble(netlist, outs)

@@ -4,7 +4,7 @@ published waveforms, our own tightest run, and (optionally) batch ngspice.
     python benchmarks/bench_ibmpg.py [--rtol 1e-6,pade:1e-10,1e-12] [--ngspice] [--ngspice-log FILE]
 
 Each ``--rtol`` entry is ``[method:]rtol`` (method ``cf``, the default, or ``pade``: see
-:func:`netlistdyn.transient.run_transient`); the last entry is the reference.
+:func:`netlistdyn.simulation.transient.run_transient`); the last entry is the reference.
 
 The netlist and reference are read from ``../shared/benchmarks/ibmpg/`` (bz2). Every run of ours
 happens in a child process (so peak memory is per run); CPU seconds are the child's user+system
@@ -69,10 +69,10 @@ def read_ngspice_print(log: Path) -> tuple[list[str], np.ndarray]:
 CHILD = r"""
 import json, resource, sys, time
 import numpy as np
-from netlistdyn.descriptor import assemble
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import source_waveform
-from netlistdyn.transient import run_transient
+from netlistdyn.formulation.descriptor import assemble
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.simulation.transient import run_transient
 path, rtol, outs, method = sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[5]
 marks = [(time.process_time(), time.perf_counter())]
 netlist = parse_file(path)

@@ -19,8 +19,8 @@ import statistics
 import time
 from collections.abc import Callable
 
-from netlistdyn.errors import NetlistError
-from netlistdyn.parser import parse_text
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.frontend.parser import parse_text
 
 
 def chained(n: int) -> str:

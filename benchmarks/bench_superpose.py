@@ -30,9 +30,9 @@ from powergrid import grid_netlist, probe_nodes
 def _run(
     text: str, outputs: list[str], rtol: float, jobs: int, scheduler: str, tstep: float | None, queue
 ) -> None:
-    from netlistdyn.large import simulate_large
-    from netlistdyn.parser import parse_text
-    from netlistdyn.superpose import simulate_superposed
+    from netlistdyn.frontend.parser import parse_text
+    from netlistdyn.workflows.large import simulate_large
+    from netlistdyn.workflows.superpose import simulate_superposed
 
     wall, cpu = time.perf_counter(), time.process_time()
     netlist = parse_text(text)

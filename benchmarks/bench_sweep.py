@@ -24,8 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from ladder import ladder_netlist
 
-from netlistdyn.formulate import compile_netlist, formulate, recompile
-from netlistdyn.parser import parse_text
+from netlistdyn.formulation.compile import compile_netlist, formulate, recompile
+from netlistdyn.frontend.parser import parse_text
 
 RESISTANCES = (0.1, 0.3, 1.0, 3.0, 10.0)
 

@@ -9,7 +9,7 @@ table comes from::
 
 ``--details`` also lists every file with its outcome. ``--original-check``
 also runs validate's check against ngspice's reading of the original file
-(:func:`netlistdyn.validate.check_original`) on every compiled file and counts
+(:func:`netlistdyn.spice.validate.check_original`) on every compiled file and counts
 its verdicts. Needs ngspice.
 """
 
@@ -42,11 +42,11 @@ def _construct(reason: str) -> str:
 
 def _original_verdict(path: Path) -> str:
     """validate's original-file check on ``path`` with its default outputs: agrees / DISAGREES / not run."""
-    from netlistdyn.analysis import analyze_eigenvalues
-    from netlistdyn.formulate import compile_netlist
-    from netlistdyn.parser import parse_file
-    from netlistdyn.probes import default_probes
-    from netlistdyn.validate import check_original
+    from netlistdyn.analysis.eigen import analyze_eigenvalues
+    from netlistdyn.circuit.probes import default_probes
+    from netlistdyn.formulation.compile import compile_netlist
+    from netlistdyn.frontend.parser import parse_file
+    from netlistdyn.spice.validate import check_original
 
     netlist = parse_file(path)
     probes = default_probes(netlist)

@@ -25,9 +25,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from netlistdyn import formulate  # noqa: E402
-from netlistdyn.algebra import EXACT, NUMERIC  # noqa: E402
-from netlistdyn.netlist import Netlist  # noqa: E402
-from netlistdyn.parser import parse_file, parse_text  # noqa: E402
+from netlistdyn.circuit.netlist import Netlist  # noqa: E402
+from netlistdyn.formulation.algebra import EXACT, NUMERIC  # noqa: E402
+from netlistdyn.frontend.parser import parse_file, parse_text  # noqa: E402
 from tests.random_networks import random_network  # noqa: E402
 
 

@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from ladder import ladder_netlist  # noqa: E402
 
-from netlistdyn.processes import run_program  # noqa: E402
+from netlistdyn.base.processes import run_program  # noqa: E402
 
 POINTS = 1000
 
@@ -74,10 +74,10 @@ def on_grid(table: np.ndarray, tstop: float) -> np.ndarray | None:
 def reference(path: Path, outputs: list[str]) -> tuple[np.ndarray, str, float, float]:
     """Our tight run on the grid, and the default method at rtol 1e-10 timed in-process:
     (reference outputs, method, CPU s, its error)."""
-    from netlistdyn import integrators
-    from netlistdyn.formulate import compile_netlist
-    from netlistdyn.parser import parse_file
-    from netlistdyn.simulate import input_signals
+    from netlistdyn.formulation.compile import compile_netlist
+    from netlistdyn.frontend.parser import parse_file
+    from netlistdyn.simulation import integrators
+    from netlistdyn.simulation.foh import input_signals
 
     net = parse_file(path)
     model = compile_netlist(net, outputs)

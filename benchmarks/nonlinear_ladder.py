@@ -26,9 +26,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from netlistdyn.nltransient import run
-from netlistdyn.parser import parse_text
-from netlistdyn.processes import run_program
+from netlistdyn.base.processes import run_program
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation.nltransient import run
 
 MODEL = ".model dm D(IS=2.52n N=1.752 RS=0.568 CJO=4p M=0.4 TT=20n)\n"
 TSTOP = 50e-6

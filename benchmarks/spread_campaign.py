@@ -23,10 +23,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 from tests.exact_pencil import bar_violations, exact_natural_frequencies, expected_verdict
 from tests.random_networks import random_network
 

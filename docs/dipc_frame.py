@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from netlistdyn import integrators
-from netlistdyn.animate import Animation, Options, position_variables
-from netlistdyn.coordinates import prepare
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import input_signals
+from netlistdyn.analysis.coordinates import prepare
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.io.animate import Animation, Options, position_variables
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals
 
 HERE = Path(__file__).resolve().parent
 

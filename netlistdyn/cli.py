@@ -18,9 +18,9 @@ from typing import Any
 
 import click
 
-from .atomic import STDOUT, check_writable, install_signal_cleanup, write_text
-from .errors import ControlDimension, NetlistError, UsageError
-from .values import parse_number
+from netlistdyn.base.atomic import STDOUT, check_writable, install_signal_cleanup, write_text
+from netlistdyn.base.errors import ControlDimension, NetlistError, UsageError
+from netlistdyn.base.values import parse_number
 
 METHOD_CHOICES = ("auto", "exact", "rational", "krylov", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 EXIT_NETLIST = 1
@@ -126,7 +126,7 @@ def check_outputs(**paths: str | None) -> None:
         if problem:
             raise UsageError(problem)
         if key == "save":
-            from .exports import FORMATS
+            from netlistdyn.io.exports import FORMATS
 
             suffix = os.path.splitext(path)[1].lower()
             if suffix not in FORMATS:
@@ -139,7 +139,7 @@ def check_outputs(**paths: str | None) -> None:
 
 def parse_netlist(netlist: str, overrides: dict[str, float] | None = None, text: str | None = None) -> Any:
     """Parse a netlist file, or standard input for ``-`` (``text``: stdin already read)."""
-    from .parser import parse_file, parse_text
+    from netlistdyn.frontend.parser import parse_file, parse_text
 
     if netlist != DASH:  # "-": standard input
         return parse_file(netlist, overrides)
@@ -170,7 +170,7 @@ def stdin_text() -> str:
 
 
 def _stdin_loc() -> Any:
-    from .errors import SourceLocation
+    from netlistdyn.base.errors import SourceLocation
 
     return SourceLocation(STDIN_NAME, 0)
 
@@ -297,11 +297,11 @@ def load_and_compile(
     A nonlinear netlist is replaced by its linearisation at the operating
     point (``--at`` values moved), which is the netlist returned.
     """
-    from .formulate import compile_netlist
+    from netlistdyn.formulation.compile import compile_netlist
 
     parsed = parse_netlist(netlist, parse_param_overrides(params))
     if parsed.is_nonlinear:
-        from .nonlinear import linearised
+        from netlistdyn.formulation.operating import linearised
 
         parsed, outputs = linearised(parsed, outputs, parse_param_overrides(at, "--at"))
     elif at:
@@ -326,7 +326,7 @@ def load_prepared(
 
     See :mod:`netlistdyn.coordinates`; ``extra`` are hidden outputs a view needs.
     """
-    from .coordinates import prepare
+    from netlistdyn.analysis.coordinates import prepare
 
     if parsed is None:
         parsed = parse_netlist(netlist, parse_param_overrides(params))
@@ -426,8 +426,8 @@ def analyze(
     out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
-    from .analysis import analyze_eigenvalues
-    from .report import (
+    from netlistdyn.analysis.eigen import analyze_eigenvalues
+    from netlistdyn.io.report import (
         canonical_dict,
         canonical_forms,
         canonical_text,
@@ -442,7 +442,7 @@ def analyze(
 
     def body() -> int:
         check_outputs(bode=bode, save=save, out=out)
-        from .large import descriptor_wanted
+        from netlistdyn.workflows.large import descriptor_wanted
 
         early = parse_netlist(netlist, parse_param_overrides(params))
         if descriptor_wanted(early, "auto"):  # large circuit: sparse descriptor form
@@ -457,7 +457,7 @@ def analyze(
             )
             return _analyze_descriptor(early, outputs, fmt, out, [f for f, on in explicit_only if on])
 
-        from . import progress
+        from netlistdyn.base import progress
 
         stages = contextlib.ExitStack()
         bar = stages.enter_context(progress.bar("analyze", 2, quiet, unit="stage"))
@@ -478,12 +478,12 @@ def analyze(
         if symbolic or symbols is not None:
             if minimal:
                 raise UsageError("--symbolic shows the compiled model; it cannot be combined with --minimal")
-            from .symbolic import symbolic_model
+            from netlistdyn.formulation.symbolic import symbolic_model
 
             keep = None if symbols is None else [n.strip() for n in symbols.split(",") if n.strip()]
             sym = symbolic_model(parsed, list(outputs) or list(model.outputs), keep)
         if minimal or control_report:
-            from . import control
+            from netlistdyn.analysis import control
 
             if model.nstates > control.CONTROL_STATE_LIMIT:
                 raise UsageError(
@@ -512,11 +512,11 @@ def analyze(
         stages.close()
         forms = canonical_forms(model) if canonical else None
         if save:
-            from .exports import save_model
+            from netlistdyn.io.exports import save_model
 
             save_model(model, save)
         if bode:
-            from .plots import ac_range, bode_plot
+            from netlistdyn.io.plots import ac_range, bode_plot
 
             bode_plot(model, bode, ac_range(parsed))
         if fmt == "json":
@@ -531,14 +531,14 @@ def analyze(
             if notes:
                 doc["notes"] = notes
             if change is not None:
-                from .coordinates import change_dict
+                from netlistdyn.analysis.coordinates import change_dict
 
                 doc["coordinates"] = change_dict(change)
             emit(to_json(doc), out)
         else:
             text = text_report(model, analysis, netlist, parsed)
             if change is not None:
-                from .coordinates import change_text
+                from netlistdyn.analysis.coordinates import change_text
 
                 text += change_text(change)
             if control_report:
@@ -573,8 +573,8 @@ def op(netlist: str, params: tuple[str, ...], at: tuple[str, ...], fmt: str, out
 
     def body() -> int:
         check_outputs(out=out)
-        from .nonlinear import operating_point, point_dict, point_text
-        from .report import to_json
+        from netlistdyn.formulation.operating import operating_point, point_dict, point_text
+        from netlistdyn.io.report import to_json
 
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         _print_warnings(parsed.warnings)
@@ -661,7 +661,7 @@ def validate(
     Exit status 0 when every output agrees within --rtol of its peak, 3 when not,
     4 when ngspice is missing or unusable, 5 when it ran out of --timeout.
     """
-    from .spice import ngspice_missing
+    from netlistdyn.spice.ngspice import ngspice_missing
 
     def body() -> int:
         check_outputs(plot=plot, out=out)
@@ -669,10 +669,10 @@ def validate(
         if missing:
             click.echo(f"netlistdyn: {missing}", err=True)
             return EXIT_NO_NGSPICE
-        from . import progress
-        from .api import NetlistText, validation_pipeline
-        from .display import signal_units
-        from .report import to_json, validation_dict, validation_text
+        from netlistdyn.base import progress
+        from netlistdyn.devices.units import signal_units
+        from netlistdyn.io.report import to_json, validation_dict, validation_text
+        from netlistdyn.workflows.pipelines import NetlistText, validation_pipeline
 
         # "-": the text of standard input (ngspice reads it from a temporary copy).
         source = NetlistText(STDIN_NAME, stdin_text()) if netlist == DASH else netlist
@@ -698,7 +698,7 @@ def validate(
             click.echo(f"netlistdyn: {report.spice.message} (raise it with --timeout)", err=True)
             return EXIT_TIMEOUT
         if plot and report.spice.ok:
-            from .plots import validation_plot
+            from netlistdyn.io.plots import validation_plot
 
             validation_plot(report, plot, signal_units(parse_netlist(netlist), result.outputs), result.title)
         if fmt == "json":
@@ -825,20 +825,21 @@ def simulate(
     def body() -> int:
         from dataclasses import replace
 
-        from . import progress
-        from .api import simulation_pipeline
-        from .coordinates import select_outputs
-        from .display import eng, signal_units
-        from .large import descriptor_wanted
-        from .report import simulation_csv, simulation_dict, simulation_summary, to_json
-        from .simulate import input_signals
-        from .validity import rod_angles, validity_warnings
+        from netlistdyn.analysis.coordinates import select_outputs
+        from netlistdyn.analysis.validity import rod_angles, validity_warnings
+        from netlistdyn.base import progress
+        from netlistdyn.base.formatting import eng
+        from netlistdyn.devices.units import signal_units
+        from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json
+        from netlistdyn.simulation.foh import input_signals
+        from netlistdyn.workflows.large import descriptor_wanted
+        from netlistdyn.workflows.pipelines import simulation_pipeline
 
         check_outputs(csv=csv_path, plot=plot, animate=animate, out=out)
         split = _superpose_options(superpose, jobs, oversubscribe, scheduler, coordinates, animate)
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         if split is not None:
-            from .superpose import check_linear
+            from netlistdyn.workflows.superpose import check_linear
 
             check_linear(parsed)
         if descriptor_wanted(parsed, method):  # large circuit: sparse descriptor form
@@ -851,14 +852,14 @@ def simulate(
         angles = rod_angles(parsed)
         extra = list(angles)
         if animate:
-            from .animate import animation_options, position_variables
+            from netlistdyn.io.animate import animation_options, position_variables
 
             view = animation_options(animate, fps, speed, frame_size, geometry)
             extra += position_variables(parsed)
         parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra), parsed)
         full = prepared.full
         if split is not None:
-            from .superpose import explicit_task
+            from netlistdyn.workflows.superpose import explicit_task
 
             task, span = explicit_task(parsed, full, tstop, tstep, method, rtol, atol, prepared.x0, force)
             run = _run_superposed(task, span, split, quiet)
@@ -898,11 +899,11 @@ def simulate(
         if csv_path:
             write_atomic(csv_path, simulation_csv(result))
         if plot:
-            from .plots import simulation_plot
+            from netlistdyn.io.plots import simulation_plot
 
             simulation_plot(result, plot)
         if animate:
-            from .animate import Animation
+            from netlistdyn.io.animate import Animation
 
             signals = input_signals(parsed, horizon.tstep, horizon.tstop)
             movie = Animation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
@@ -912,7 +913,7 @@ def simulate(
             doc = simulation_dict(result, netlist)
             doc["warnings"] = warnings
             if prepared.change is not None:
-                from .coordinates import change_dict
+                from netlistdyn.analysis.coordinates import change_dict
 
                 doc["coordinates"] = change_dict(prepared.change)
             emit(to_json(doc), out)
@@ -927,7 +928,7 @@ def simulate(
             if result.method == "euler" and result.message:  # its error against the exact solution
                 text += result.message + "\n"
             if prepared.change is not None:
-                from .coordinates import change_text
+                from netlistdyn.analysis.coordinates import change_text
 
                 text += change_text(prepared.change)
             emit(text, out)
@@ -1003,11 +1004,10 @@ def bench(
     started = time.perf_counter()
 
     def body() -> int:
-        from . import progress
-        from .analysis import analyze_eigenvalues
-        from .bench import MAX_POINTS, run_bench
-        from .probes import parse_probe
-        from .report import (
+        from netlistdyn.analysis.eigen import analyze_eigenvalues
+        from netlistdyn.base import progress
+        from netlistdyn.circuit.probes import parse_probe
+        from netlistdyn.io.report import (
             bench_dict,
             bench_head_dict,
             bench_line,
@@ -1018,8 +1018,9 @@ def bench(
             bench_text_tail,
             to_json,
         )
-        from .simulate import choose_horizon
-        from .validate import spice_settings_for
+        from netlistdyn.simulation.foh import choose_horizon
+        from netlistdyn.spice.bench import MAX_POINTS, run_bench
+        from netlistdyn.spice.validate import spice_settings_for
 
         if points > MAX_POINTS:
             raise UsageError(f"--points {points}: more than {MAX_POINTS:,} grid intervals")
@@ -1088,7 +1089,7 @@ def bench(
                     )
                 )
         if plot:
-            from .plots import bench_plot
+            from netlistdyn.io.plots import bench_plot
 
             bench_plot(report, plot)
         if not live:
@@ -1171,9 +1172,9 @@ def sweep(
     """
 
     def body() -> int:
-        from . import progress
-        from .report import sweep_record_json, sweep_text, to_json
-        from .sweep import SweepSource, expand_cases, iter_sweep
+        from netlistdyn.base import progress
+        from netlistdyn.io.report import sweep_record_json, sweep_text, to_json
+        from netlistdyn.workflows.sweep import SweepSource, expand_cases, iter_sweep
 
         check_outputs(plot=plot, out=out)
         check_scheduler(scheduler)
@@ -1204,7 +1205,7 @@ def sweep(
             click.echo(f"{first} (every one of the {len(result)} cases failed)", err=True)
             return EXIT_NETLIST
         if plot:
-            from .plots import sweep_plot
+            from netlistdyn.io.plots import sweep_plot
 
             sweep_plot(result, plot)
         if fmt == "json":
@@ -1253,7 +1254,7 @@ def worker_count(jobs: int, cases: int, oversubscribe: bool, scheduler: str) -> 
 
 def _whole_file(parsed: Any) -> Any:
     """The location of a netlist as a whole (its title line)."""
-    from .errors import SourceLocation
+    from netlistdyn.base.errors import SourceLocation
 
     return SourceLocation(getattr(parsed, "path", None) or "<netlist>", 1)
 
@@ -1292,7 +1293,7 @@ def load_block(path: str, params: tuple[str, ...], outputs: tuple[str, ...]) -> 
     if Path(path).suffix.lower() in MODEL_SUFFIXES:
         if params or outputs:
             raise UsageError(f"{path} is a saved model: --param/--output apply to netlists only")
-        from .exports import load_model
+        from netlistdyn.io.exports import load_model
 
         return load_model(path)
     return load_and_compile(path, params, list(outputs) or None)[1]
@@ -1339,9 +1340,9 @@ def connect(
     def body() -> int:
         from pathlib import Path
 
-        from .analysis import analyze_eigenvalues
-        from .interconnect import connection_names, feedback, series
-        from .report import model_dict, text_report, to_json
+        from netlistdyn.analysis.eigen import analyze_eigenvalues
+        from netlistdyn.io.report import model_dict, text_report, to_json
+        from netlistdyn.statespace.interconnect import connection_names, feedback, series
 
         check_outputs(save=save, out=out)
         m1 = load_block(first, param1, output1)
@@ -1353,7 +1354,7 @@ def connect(
         links = connection_names(m1, m2, how, names, float(sign))
         analysis = analyze_eigenvalues(model.A_sparse, pencil=model.pencil)
         if save:
-            from .exports import save_model
+            from netlistdyn.io.exports import save_model
 
             save_model(model, save)
         if fmt == "json":
@@ -1384,14 +1385,14 @@ def _simulate_descriptor(
     split: tuple[int, str, bool] | None = None,
 ) -> int:
     """``simulate`` on the sparse descriptor form (see :mod:`netlistdyn.large`), superposed with ``split``."""
-    from . import progress
-    from .display import eng
-    from .large import simulate_large
-    from .report import simulation_csv, simulation_dict, simulation_summary, to_json
+    from netlistdyn.base import progress
+    from netlistdyn.base.formatting import eng
+    from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json
+    from netlistdyn.workflows.large import simulate_large
 
     _print_warnings(parsed.warnings)
     if split is not None:
-        from .superpose import descriptor_task
+        from netlistdyn.workflows.superpose import descriptor_task
 
         task, horizon = descriptor_task(parsed, list(outputs) or None, tstop, tstep, ics, rtol)
         result = _run_superposed(task, horizon, split, quiet)
@@ -1416,7 +1417,7 @@ def _simulate_descriptor(
     if csv_path:
         write_atomic(csv_path, simulation_csv(result))
     if plot:
-        from .plots import simulation_plot
+        from netlistdyn.io.plots import simulation_plot
 
         simulation_plot(result, plot)
     if fmt == "json":
@@ -1457,8 +1458,8 @@ def _superpose_options(
 
 def _run_superposed(task: Any, horizon: Any, split: tuple[int, str, bool], quiet: bool) -> Any:
     """Plan, run and sum the jobs of ``simulate --superpose`` (see :mod:`netlistdyn.superpose`)."""
-    from . import progress
-    from .superpose import plan, superpose
+    from netlistdyn.base import progress
+    from netlistdyn.workflows.superpose import plan, superpose
 
     count, scheduler, oversubscribe = split
     jobs = plan(task.netlist, count, task.tstep, task.tstop, bool(task.ics) or task.x0 is not None)
@@ -1473,8 +1474,8 @@ def _analyze_descriptor(
     parsed: Any, outputs: tuple[str, ...], fmt: str, out: str | None, refused: list[str]
 ) -> int:
     """``analyze`` of a large circuit: the descriptor form's size, states and slowest modes."""
-    from .large import DESCRIPTOR_UNKNOWNS, analyze_large, analyze_text
-    from .report import to_json
+    from netlistdyn.io.report import to_json
+    from netlistdyn.workflows.large import DESCRIPTOR_UNKNOWNS, analyze_large, analyze_text
 
     if refused:
         raise UsageError(

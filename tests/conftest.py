@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.model import StateSpaceModel
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file, parse_text
+from netlistdyn.statespace.model import StateSpaceModel
 
 ROOT = Path(__file__).resolve().parent.parent
 NETLISTS = ROOT / "netlists"

@@ -15,7 +15,7 @@ from fractions import Fraction
 import mpmath as mp
 import sympy
 
-from netlistdyn.netlist import GROUND, Kind
+from netlistdyn.circuit.netlist import GROUND, Kind
 
 #: Working precision of the root finder (decimal digits).
 DIGITS = 70

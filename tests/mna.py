@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from netlistdyn.netlist import GROUND, Kind, Netlist
+from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
 
 
 @dataclass

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netlistdyn.netlist import Netlist
+from netlistdyn.circuit.netlist import Netlist
 from tests.mna import build_mna
 
 NGSPICE = shutil.which("ngspice")

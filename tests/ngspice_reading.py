@@ -663,7 +663,7 @@ def _source_key(ngspice_name: str) -> str:
 def compare_model(path: Path, ref: Reference) -> Outcome:
     """netlistdyn's model of ``path`` against the checked pencil."""
     import netlistdyn
-    from netlistdyn.analysis import analyze_eigenvalues
+    from netlistdyn.analysis.eigen import analyze_eigenvalues
 
     pencil = ref.pencil
     top_nodes = top_level_nodes(pencil)
@@ -699,7 +699,7 @@ def compare_model(path: Path, ref: Reference) -> Outcome:
 
 def classify(path: Path, drop: tuple[str, ...] = ()) -> Outcome:
     """Build the reference from ngspice's reading and judge netlistdyn on ``path``."""
-    from netlistdyn.errors import NetlistError
+    from netlistdyn.base.errors import NetlistError
 
     try:
         reading, ref = build_reference(path, drop)

@@ -19,12 +19,12 @@ import pytest
 from click.testing import CliRunner
 from scipy import ndimage
 
-from netlistdyn import integrators
-from netlistdyn.animate import BLOCK_COLOUR, BOB_COLOUR, Animation, Options, position_variables
+from netlistdyn.analysis.coordinates import prepare
 from netlistdyn.cli import main
-from netlistdyn.coordinates import prepare
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import input_signals
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.io.animate import BLOCK_COLOUR, BOB_COLOUR, Animation, Options, position_variables
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals
 
 from .conftest import NETLISTS
 

@@ -17,12 +17,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn import bench, integrators
+from netlistdyn.base.processes import run_program
+from netlistdyn.circuit.probes import parse_probe
 from netlistdyn.cli import load_and_compile, main
-from netlistdyn.probes import parse_probe
-from netlistdyn.processes import run_program
-from netlistdyn.simulate import Horizon
-from netlistdyn.spice import SpiceSettings, batch_missing, run_batch, run_transient
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import Horizon
+from netlistdyn.spice import bench
+from netlistdyn.spice.ngspice import SpiceSettings, batch_missing, run_batch, run_transient
 
 from .conftest import NETLISTS
 
@@ -185,7 +186,7 @@ def test_run_program_child_dies_with_its_parent() -> None:
 
     root = Path(__file__).resolve().parent.parent
     script = (
-        f"import sys; sys.path.insert(0, {str(root)!r}); from netlistdyn.processes import run_program; "
+        f"import sys; sys.path.insert(0, {str(root)!r}); from netlistdyn.base.processes import run_program; "
         "run_program(['sleep', '60'], None)"
     )
     parent = subprocess.Popen([sys.executable, "-c", script])

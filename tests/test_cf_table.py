@@ -1,4 +1,4 @@
-"""The stored CF approximations of e^x on (−∞, 0] (netlistdyn/_cf_table.py), checked against
+"""The stored CF approximations of e^x on (−∞, 0] (netlistdyn/simulation/_cf_table.py), checked against
 mpmath's exponential on a dense sampling of the whole axis, independently of the generator."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from netlistdyn._cf_table import CF
+from netlistdyn.simulation._cf_table import CF
 
 #: Halphen's constant: the best type (n, n) error on (−∞, 0] decays as HALPHEN**−n
 #: (Cody–Meinardus–Varga; Gonchar–Rakhmanov), asymptotically 2·HALPHEN**(−n−1/2) ≈ 0.66·HALPHEN**−n.

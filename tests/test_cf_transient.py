@@ -1,4 +1,4 @@
-"""The CF stepping of the descriptor transient (netlistdyn/transient.py, method ``cf``) against
+"""The CF stepping of the descriptor transient (netlistdyn/simulation/transient.py, method ``cf``) against
 independent references: a dense exact discretisation of the grids of benchmarks/powergrid.py
 (algebraic unknowns eliminated, matrix exponential of the Van Loan block with first-order hold)
 and the closed form of an RC driven by a ramp (the nilpotent augmentation's r(0), r′(0))."""
@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from netlistdyn import descriptor, transient
-from netlistdyn.parser import parse_text
-from netlistdyn.simulate import source_waveform
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.formulation import descriptor
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation import transient
 
 from .conftest import ROOT
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 import netlistdyn
-from netlistdyn.errors import NetlistError
+from netlistdyn.base.errors import NetlistError
 
 from .ngspice_reading import (
     ReferenceUnavailable,

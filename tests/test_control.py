@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn import control
+from netlistdyn.analysis import control
+from netlistdyn.base.errors import UsageError
 from netlistdyn.cli import main
-from netlistdyn.errors import UsageError
-from netlistdyn.exports import load_model, save_model
+from netlistdyn.io.exports import load_model, save_model
 
 from .conftest import NETLISTS, compile_file, compile_string, match_spectra
 
@@ -77,7 +77,7 @@ def test_sweep_reproduces_the_seed_case_tables() -> None:
 
 
 def test_sweep_ranges() -> None:
-    from netlistdyn.sweep import expand_cases
+    from netlistdyn.workflows.sweep import expand_cases
 
     cases = expand_cases(["R1=log:1e-6:1e3:10"])
     assert (

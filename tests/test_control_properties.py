@@ -33,9 +33,9 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from sympy.polys.matrices import DomainMatrix
 
-from netlistdyn import control
-from netlistdyn.errors import NetlistError
-from netlistdyn.model import StateSpaceModel
+from netlistdyn.analysis import control
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.statespace.model import StateSpaceModel
 
 from .conftest import compile_string
 

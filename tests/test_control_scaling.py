@@ -19,9 +19,9 @@ import scipy.sparse as sp
 import sympy
 from click.testing import CliRunner
 
-from netlistdyn import control
+from netlistdyn.analysis import control
 from netlistdyn.cli import main
-from netlistdyn.model import StateSpaceModel
+from netlistdyn.statespace.model import StateSpaceModel
 
 from .conftest import NETLISTS, compile_file, compile_string, match_spectra
 

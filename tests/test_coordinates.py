@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from netlistdyn.analysis.coordinates import prepare
 from netlistdyn.cli import main
-from netlistdyn.coordinates import prepare
-from netlistdyn.exports import load_model
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.frontend.parser import parse_file, parse_text
+from netlistdyn.io.exports import load_model
 
 from .conftest import NETLISTS
 
@@ -176,7 +176,7 @@ def test_servo_in_the_notes_coordinates(K) -> None:
     assert_entries(change.model.B, B)
     assert 1 < change.condition < 1e6
     # Same input-output behaviour as the compiled model with the coordinates as outputs.
-    from netlistdyn.coordinates import select_outputs
+    from netlistdyn.analysis.coordinates import select_outputs
 
     original = select_outputs(change.original, change.model.outputs)
     for s in (0.5j, 3.0 + 170j, 20.0):
@@ -260,7 +260,7 @@ def test_dipc_from_the_notes_angles_matches_lsim() -> None:
     """The notes' run starts at θ1 = −0.01, θ2 = −0.02 rad; scipy's lsim on the notes' model."""
     from scipy.signal import lsim
 
-    from netlistdyn.simulate import input_signals
+    from netlistdyn.simulation.foh import input_signals
 
     doc = simulate_json(
         "dipc.cir",
@@ -331,7 +331,7 @@ def test_small_swing_does_not_warn() -> None:
 
 
 def test_angle_bound_is_one_percent() -> None:
-    from netlistdyn.validity import SMALL_ANGLE_LIMIT
+    from netlistdyn.analysis.validity import SMALL_ANGLE_LIMIT
 
     assert 1 - np.cos(SMALL_ANGLE_LIMIT) == pytest.approx(0.01, rel=1e-12)
 

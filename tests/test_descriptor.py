@@ -18,13 +18,16 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from click.testing import CliRunner
 
-from netlistdyn import descriptor, integrators, large, transient
-from netlistdyn.analysis import analyze_eigenvalues
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.circuit.netlist import GROUND, Kind
+from netlistdyn.circuit.sources import source_waveform
 from netlistdyn.cli import main
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.netlist import GROUND, Kind
-from netlistdyn.parser import parse_file, parse_text
-from netlistdyn.simulate import choose_horizon, input_signals, source_waveform
+from netlistdyn.formulation import descriptor
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file, parse_text
+from netlistdyn.simulation import integrators, transient
+from netlistdyn.simulation.foh import choose_horizon, input_signals
+from netlistdyn.workflows import large
 
 from .conftest import NETLISTS, ROOT
 
@@ -303,7 +306,7 @@ def test_cli_uses_descriptor_form_for_large_circuits(tmp_path, monkeypatch) -> N
 def test_source_values_evaluate_pwl_tables_as_each_waveform_does() -> None:
     """The side-by-side PWL evaluation equals each waveform's own (jumps, holds before the first
     and after the last corner, corners exactly hit), to the last bit."""
-    from netlistdyn.waveforms import Dc, Pwl
+    from netlistdyn.circuit.waveforms import Dc, Pwl
 
     rng = np.random.default_rng(3)
     waves = []

@@ -20,13 +20,13 @@ import warnings
 import numpy as np
 import pytest
 
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 
 from .random_networks import random_network
 
 sympy = pytest.importorskip("sympy")
-from netlistdyn.symbolic import symbolic_model  # noqa: E402
+from netlistdyn.formulation.symbolic import symbolic_model  # noqa: E402
 
 #: |float(x) − x| ≤ 2⁻⁵³·|x| for a correctly rounded x.
 ROUNDING = 2.0**-53

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn.analysis import analyze_eigenvalues
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.cli import main
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file, parse_text
 from tests.conftest import NETLISTS
 from tests.exact_pencil import exact_natural_frequencies
 from tests.mna import build_mna

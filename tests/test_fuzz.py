@@ -15,9 +15,9 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from netlistdyn.errors import NetlistError, UsageError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 
 
 def compile_or_refuse(text: str, outputs: list[str] | None = None) -> None:

@@ -21,10 +21,10 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.errors import NetlistError, UsageError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 
 EXAMPLES = int(os.environ.get("NETLISTDYN_FUZZ_EXAMPLES", "200"))
 NODES = ["0", "a", "b", "c", "d", "e"]

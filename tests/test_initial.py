@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import netlistdyn
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.initial import transient_start
-from netlistdyn.parser import parse_text
-from netlistdyn.simulate import input_signals, propagate_foh
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation.foh import input_signals, propagate_foh
+from netlistdyn.simulation.initial import transient_start
 from tests.ngspice_probe import needs_ngspice, ngspice_tran
 
 RLC = "V1 in 0 DC 1\nR1 in a 100\nC1 a 0 1u\nL1 a b 10m{lic}\nR2 b 0 50\nC2 b 0 2.2u\n"
@@ -141,7 +141,7 @@ def test_descriptor_start_as_ngspice(name: str) -> None:
     the peak (slowest time constant 0.47 ms) to the TOLERANCE above. The t = 0 sample is left out:
     under UIC it is taken 1e-9 of a step after the start (see transient._consistent).
     """
-    from netlistdyn.large import simulate_large
+    from netlistdyn.workflows.large import simulate_large
 
     text = f"{name}\n{CIRCUITS[name]}"
     outputs = OUTPUTS.get(name, ["v(a)", "v(b)"])
@@ -164,7 +164,7 @@ def test_descriptor_uic_capacitor_loop_conserves_node_charge_as_ngspice() -> Non
     explicit model refuses C3 (not a state); the descriptor form sets each capacitor's charge and
     lets the first instant share it out, node charge conserved — ngspice's start too (v(a) = 0.8,
     v(b) = 0.6). Tolerance as in test_descriptor_start_as_ngspice."""
-    from netlistdyn.large import simulate_large
+    from netlistdyn.workflows.large import simulate_large
 
     text = (
         "t\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1u IC=1\nC2 a b 1u\nC3 b 0 1u IC=0.4\nR3 b 0 1k\n.tran 10u 4m uic\n"

@@ -20,11 +20,11 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from netlistdyn import integrators
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.integrators import pade_factors, pade_factors_exact
-from netlistdyn.parser import parse_file, parse_text
-from netlistdyn.simulate import input_signals
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file, parse_text
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals
+from netlistdyn.simulation.integrators import pade_factors, pade_factors_exact
 
 from .conftest import NETLISTS, compile_file, compile_string
 
@@ -178,7 +178,7 @@ def test_exact_at_many_times_matches_mpmath(R: float) -> None:
     each requested time from the grid point before it (vectorised); with 10x more times than
     grid points it must stay exact (EXACT_RTOL against the 40-digit reference, at 25 of the
     20 001 times)."""
-    from netlistdyn.simulate import MODAL_GRID_POINTS
+    from netlistdyn.simulation.foh import MODAL_GRID_POINTS
 
     net = parse_file(NETLISTS / "circuit1.cir", {"R1": R, "R2": R})
     model = compile_file("circuit1.cir", {"R1": R, "R2": R}, ["v(a)", "i(L1)"])
@@ -219,7 +219,7 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str | Path, monkeypatch
     Python step each) keep the stepwise run at seconds, and put requested times between substeps
     of the SIN/EXP pieces (a requested time that rounding moved off the refined grid was once
     read one substep late: 7e-5 of the peak on waveforms.cir)."""
-    from netlistdyn.simulate import FohPropagator, propagate_foh
+    from netlistdyn.simulation.foh import FohPropagator, propagate_foh
 
     net = parse_file(NETLISTS / name)
     model = compile_netlist(net, None)
@@ -254,7 +254,7 @@ def test_vectorised_and_stepwise_exact_paths_agree(name: str | Path, monkeypatch
 def test_phi_functions_against_mpmath() -> None:
     """φ1, φ2 to 4 ulps over |z| from 1e-20 to 1e2 in every direction. The reference carries
     40 + 2·log10(1/|z|) digits: φ2's cancellation costs twice the exponent."""
-    from netlistdyn.simulate import _phi12
+    from netlistdyn.simulation.foh import _phi12
 
     rng = np.random.default_rng(11)
     z = 10.0 ** rng.uniform(-20, 2, 400) * np.exp(1j * rng.uniform(0, 2 * np.pi, 400))

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netlistdyn.errors import ControlDimension
-from netlistdyn.interconnect import feedback, series
+from netlistdyn.base.errors import ControlDimension
+from netlistdyn.statespace.interconnect import feedback, series
 
 from .conftest import compile_file, compile_string
 
@@ -75,7 +75,7 @@ def test_connect_cli_series_and_feedback_match_the_api(tmp_path) -> None:
     from click.testing import CliRunner
 
     from netlistdyn.cli import main
-    from netlistdyn.exports import save_model
+    from netlistdyn.io.exports import save_model
 
     plant = _write(tmp_path, "plant.cir", PLANT)
     sensor = _write(tmp_path, "sensor.cir", SENSOR)

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn.analysis import analyze_eigenvalues
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.cli import main
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.frontend.parser import parse_file, parse_text
 
 from .conftest import NETLISTS, compile_file, compile_string, match_spectra
 

@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netlistdyn.errors import NetlistError
-from netlistdyn.expressions import evaluate
-from netlistdyn.netlist import Kind
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.circuit.expressions import evaluate
+from netlistdyn.circuit.netlist import Kind
+from netlistdyn.frontend.parser import parse_file, parse_text
 from tests.ngspice_probe import (
     NgspiceRefused,
     assert_same_op,
@@ -454,7 +454,7 @@ def test_ltspice_coupling_of_three_inductors() -> None:
 def test_linear_behavioural_sources_compile() -> None:
     # The compiled state-space model of a circuit with B sources has the natural frequencies of
     # the independent MNA pencil of the same reading (whose DC solution matches ngspice above).
-    from netlistdyn.formulate import compile_netlist
+    from netlistdyn.formulation.compile import compile_netlist
     from tests.mna import build_mna
 
     text = (

@@ -16,12 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netlistdyn.devices import GMIN, Behaviour, diode_charge, diode_current, fold, thermal_voltage
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.netlist import Kind
-from netlistdyn.nonlinear import NoOperatingPoint, linearised, operating_point
-from netlistdyn.parser import parse_text
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.circuit.netlist import Kind
+from netlistdyn.devices.models import GMIN, Behaviour, diode_charge, diode_current, fold, thermal_voltage
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.nonlinear import NoOperatingPoint
+from netlistdyn.formulation.operating import linearised, operating_point
+from netlistdyn.frontend.parser import parse_text
 
 from .conftest import NETLISTS
 
@@ -286,7 +287,7 @@ def assert_transient_matches(
     text: str, tstop: float, outputs: list[str], tmp: Path, options: str = TRAN_OPTIONS
 ) -> None:
     """The nonlinear transient (rtol 1e-6) within TRAN_RTOL of each output's peak of ngspice's."""
-    from netlistdyn.nltransient import run
+    from netlistdyn.simulation.nltransient import run
 
     ref = _ngspice_tran(text, tstop, outputs, tmp, options)
     ours = run(parse_text(text + ".end\n"), outputs, ref[:, 0], rtol=1e-6)
@@ -331,7 +332,7 @@ def test_held_charge_reports_the_drift() -> None:
 
 def test_omitted_pulse_times_take_spice_defaults() -> None:
     """PULSE(0 3 1u) is PULSE(0 3 1u TSTEP TSTEP TSTOP TSTOP), as ngspice resolves it (was a TypeError)."""
-    from netlistdyn.nltransient import run
+    from netlistdyn.simulation.nltransient import run
 
     body = "V1 a 0 PULSE(0 3 1u{})\nR1 a b 1k\nD1 b 0 dm\nC1 b 0 1n\n" + _MODEL
     times = np.linspace(0.0, 20e-6, 101)  # TSTEP = 0.2 us, TSTOP = 20 us
@@ -348,7 +349,7 @@ def test_omitted_pulse_times_take_spice_defaults() -> None:
 
 def test_junction_capacitance_loop_is_refused_in_one_line() -> None:
     """A diode's junction charge (no RS) across a capacitor: a capacitor loop, refused (was LinAlgError)."""
-    from netlistdyn.nltransient import run
+    from netlistdyn.simulation.nltransient import run
 
     text = "loop\nV1 a 0 PULSE(0 3 1u 0.2u 0.2u 20u 20u)\nR1 a b 1k\nD1 b 0 dm\nC1 b 0 1n\n"
     text += ".model dm D(IS=2.52n N=1.752 CJO=4p)\n.end\n"

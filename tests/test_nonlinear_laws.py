@@ -1,7 +1,7 @@
 """The nonlinear residual and the linear compiler state each element's law once.
 
 :mod:`netlistdyn.nonlinear` builds its modified nodal equations from
-:func:`netlistdyn.formulate.element_laws`, the laws the tree/cotree compiler
+:func:`netlistdyn.formulation.formulate.element_laws`, the laws the tree/cotree compiler
 reduces. For a *linear* netlist both must then give the same model: the
 Jacobian of the nonlinear transient's ``f`` (``state`` mode, implicit
 differentiation) is A, its response to each input is B's column, and ``op``
@@ -29,12 +29,12 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-import netlistdyn.nonlinear as nonlinear
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.netlist import Kind, Netlist
-from netlistdyn.nltransient import NonlinearSystem
-from netlistdyn.parser import parse_file, parse_text
+import netlistdyn.formulation.nonlinear as nonlinear
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.nlsystem import NonlinearSystem
+from netlistdyn.frontend.parser import parse_file, parse_text
 from tests.random_networks import random_network
 
 ROOT = Path(__file__).resolve().parent.parent

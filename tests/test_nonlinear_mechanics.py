@@ -15,11 +15,11 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.special import ellipk
 
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.nltransient import NonlinearSystem
-from netlistdyn.nonlinear import operating_point
-from netlistdyn.parser import parse_file, parse_text
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.nlsystem import NonlinearSystem
+from netlistdyn.formulation.operating import operating_point
+from netlistdyn.frontend.parser import parse_file, parse_text
 
 PENDULUM = Path(__file__).resolve().parent.parent / "netlists" / "pendulum.cir"
 #: Period agreement demanded by issue #14 (relative).
@@ -229,7 +229,7 @@ HELD_RTOL = 1e-12
     ],
 )
 def test_linearisation_about_a_held_angle(theta: float, expected: list[complex]) -> None:
-    from netlistdyn.nonlinear import linearised
+    from netlistdyn.formulation.operating import linearised
 
     netlist = parse_file(str(PENDULUM))  # m = 1 kg, l = 1 m, g = 10 m/s²
     point = operating_point(netlist, {"x(bob)": theta})
@@ -288,7 +288,7 @@ def test_geometry_statics_are_exact() -> None:
 def test_symbolic_linearisation_keeps_integrators_numeric() -> None:
     """--symbolic on a mechanism: the forces' gains are symbols, the x(n) integrators (1 F, 1 S) are not."""
     pytest.importorskip("sympy")
-    from netlistdyn.symbolic import symbolic_model
+    from netlistdyn.formulation.symbolic import symbolic_model
 
     netlist = parse_file(str(NETLISTS / "double_pendulum_geometry.cir"))
     model = symbolic_model(netlist)

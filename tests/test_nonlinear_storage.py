@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.netlist import Kind
-from netlistdyn.nltransient import run
-from netlistdyn.nonlinear import operating_point
-from netlistdyn.parser import parse_text
+from netlistdyn.circuit.netlist import Kind
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.operating import operating_point
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation.nltransient import run
 from tests.test_nonlinear import (
     AC_RTOL,
     OP_RTOL,

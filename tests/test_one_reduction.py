@@ -1,6 +1,6 @@
 """The one reduction over its two algebras: exact rational functions against sparse floats.
 
-:func:`netlistdyn.formulate.reduce` is run on the same normal tree with the
+:func:`netlistdyn.formulation.formulate.reduce` is run on the same normal tree with the
 numeric algebra and with the exact one (:mod:`netlistdyn.symbolic`); the
 exact matrices, evaluated at the netlist's values, must equal the numeric
 ones to the numeric path's rounding.
@@ -26,10 +26,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from netlistdyn.algebra import SparseFloats, _equilibrate
-from netlistdyn.formulate import NUMERIC_VALUES, formulate, reduce
-from netlistdyn.parser import parse_file, parse_text
-from netlistdyn.symbolic import symbolic_model
+from netlistdyn.formulation.algebra import SparseFloats, _equilibrate
+from netlistdyn.formulation.compile import formulate
+from netlistdyn.formulation.formulate import NUMERIC_VALUES, reduce
+from netlistdyn.formulation.symbolic import symbolic_model
+from netlistdyn.frontend.parser import parse_file, parse_text
 
 from .conftest import NETLISTS
 from .random_networks import random_network

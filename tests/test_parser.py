@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from netlistdyn.errors import UsageError
-from netlistdyn.expressions import ExpressionError, evaluate
-from netlistdyn.netlist import Kind
-from netlistdyn.parser import parse_file, parse_text
-from netlistdyn.values import parse_number
-from netlistdyn.waveforms import Exp, Pulse, Pwl, Sin
+from netlistdyn.base.errors import UsageError
+from netlistdyn.base.values import parse_number
+from netlistdyn.circuit.expressions import ExpressionError, evaluate
+from netlistdyn.circuit.netlist import Kind
+from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Sin
+from netlistdyn.frontend.parser import parse_file, parse_text
 from tests.conftest import NETLISTS
 
 
@@ -137,7 +137,7 @@ def test_two_pendula_cart_mass_and_bob_mass_are_separate() -> None:
     # the cart adds the zero eigenvalue. With M = 2, m = 1 the two masses must act separately.
     import numpy as np
 
-    from netlistdyn.formulate import compile_netlist
+    from netlistdyn.formulation.compile import compile_netlist
 
     big_m, m, l1, l2, g = 2.0, 1.0, 1.0, 2.0, 9.81
     k = g / big_m * np.array([[(big_m + m) / l1, m / l1], [m / l2, (big_m + m) / l2]])

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from netlistdyn.errors import NetlistError
-from netlistdyn.expressions import ExpressionError, evaluate
-from netlistdyn.parser import MAX_ELEMENTS_VARIABLE, parse_file, parse_text
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.circuit.expressions import ExpressionError, evaluate
+from netlistdyn.frontend.parser import MAX_ELEMENTS_VARIABLE, parse_file, parse_text
 
 
 def refused(text: str, fragment: str, line: int | None = None) -> NetlistError:

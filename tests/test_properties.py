@@ -21,8 +21,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.parser import parse_text
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.frontend.parser import parse_text
 
 from .conftest import compile_string, match_spectra
 from .exact_pencil import natural_frequency_count
@@ -153,7 +153,7 @@ def test_symbolic_model_evaluates_to_the_numeric_one(lines: list[str]) -> None:
     Same tree, so entry by entry; 1e-9 of each matrix's largest entry: the numeric side's
     rounding through LU solves of systems whose element values span four decades.
     """
-    from netlistdyn.symbolic import symbolic_model
+    from netlistdyn.formulation.symbolic import symbolic_model
 
     parsed = parse_text(netlist(lines))
     model = compile_string(netlist(lines))

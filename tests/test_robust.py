@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn import atomic
+from netlistdyn.base import atomic
+from netlistdyn.base.errors import UsageError
 from netlistdyn.cli import main
-from netlistdyn.errors import UsageError
-from netlistdyn.exports import load_model, save_model
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
-from netlistdyn.spice import ngspice_missing
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.io.exports import load_model, save_model
+from netlistdyn.spice.ngspice import ngspice_missing
 
 ROOT = Path(__file__).resolve().parent.parent
 CIRCUIT1 = str(ROOT / "netlists" / "circuit1.cir")
@@ -102,7 +102,7 @@ def test_sigterm_during_write_removes_the_temporary(tmp_path: Path) -> None:
     script = f"""
 import os, signal, sys, time
 sys.path.insert(0, {str(ROOT)!r})
-from netlistdyn import atomic
+from netlistdyn.base import atomic
 atomic.install_signal_cleanup()
 real_replace = os.replace
 def slow_replace(a, b):

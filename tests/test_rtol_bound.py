@@ -31,10 +31,10 @@ import scipy.linalg
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from netlistdyn import integrators
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
-from netlistdyn.simulate import input_signals, refine_grid
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals, refine_grid
 
 from .random_networks import random_network
 

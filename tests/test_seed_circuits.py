@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from netlistdyn.analysis import analyze_eigenvalues
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 
 from .conftest import compile_file, match_spectra
 

@@ -20,15 +20,15 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from netlistdyn import integrators
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
-from netlistdyn.simulate import input_signals, refine_grid
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals, refine_grid
 
 from .conftest import NETLISTS
 
 # The stage module: the package attribute netlistdyn.simulate is the API function.
-simulate = importlib.import_module("netlistdyn.simulate")
+simulate = importlib.import_module("netlistdyn.simulation.foh")
 
 JUMP_RTOL = 1e-11
 IVP_JUMP_RTOL = 1e-7

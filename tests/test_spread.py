@@ -17,10 +17,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.errors import NetlistError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_text
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
 from tests.exact_pencil import bar_violations, exact_natural_frequencies, expected_verdict
 from tests.random_networks import random_network
 

@@ -16,10 +16,10 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from netlistdyn import integrators
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.parser import parse_file
-from netlistdyn.simulate import input_signals
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals
 
 from .conftest import NETLISTS, compile_file, match_spectra
 
@@ -77,8 +77,8 @@ def test_ill_conditioned_eigenvalue_is_flagged() -> None:
 def test_triangular_double_eigenvalue_is_exact() -> None:
     """One-way coupled equal time constants: the double eigenvalue is a diagonal entry of A,
     exact under the perturbations the element values allow, and reported without a warning."""
-    from netlistdyn.formulate import compile_netlist
-    from netlistdyn.parser import parse_text
+    from netlistdyn.formulation.compile import compile_netlist
+    from netlistdyn.frontend.parser import parse_text
     from tests.exact_pencil import exact_natural_frequencies
 
     text = (NETLISTS / "controlled.cir").read_text().replace("C3 g 0 2.2u", "C3 g 0 1u")
@@ -92,7 +92,7 @@ def test_triangular_double_eigenvalue_is_exact() -> None:
     # Each within its own reported bound of the exact root (the bound is what is under test), and
     # the bound is below the level at which the report warns (a defective pair's first-order
     # bound on the circuit equations is pessimistic, but not enough to doubt the value).
-    from netlistdyn.analysis import TRUST_RTOL
+    from netlistdyn.analysis.eigen import TRUST_RTOL
 
     assert all(abs(m.value + 1000) <= m.abs_error and m.rel_error <= TRUST_RTOL for m in near)
     assert not eig.warnings

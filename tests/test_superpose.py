@@ -21,14 +21,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from netlistdyn import integrators
+from netlistdyn.circuit.waveforms import Pwl
 from netlistdyn.cli import main
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.large import simulate_large
-from netlistdyn.parser import parse_text
-from netlistdyn.simulate import input_signals
-from netlistdyn.superpose import Job, job_netlist, plan, simulate_superposed, source_groups
-from netlistdyn.waveforms import Pwl
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_text
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import input_signals
+from netlistdyn.workflows.large import simulate_large
+from netlistdyn.workflows.superpose import Job, job_netlist, plan, simulate_superposed, source_groups
 
 from .conftest import ROOT
 from .ngspice_probe import needs_ngspice, ngspice_tran
@@ -115,7 +115,7 @@ def test_superposed_equals_direct_on_v_and_i_sources(method: str, rtol: float) -
 
 def integrators_direct(netlist, method: str, rtol: float, x0=None) -> np.ndarray:
     """The direct run through simulate's own pipeline."""
-    from netlistdyn.api import simulation_pipeline
+    from netlistdyn.workflows.pipelines import simulation_pipeline
 
     model = compile_netlist(netlist, OUTPUTS)
     run = simulation_pipeline(netlist, model, method=method, rtol=rtol, x0=x0)

@@ -11,11 +11,11 @@ import sys
 import numpy as np
 import pytest
 
-import netlistdyn.formulate as formulate_module
-from netlistdyn.errors import UsageError
-from netlistdyn.formulate import compile_netlist, formulate, recompile
-from netlistdyn.parser import parse_file
-from netlistdyn.sweep import run_sweep
+import netlistdyn.formulation.formulate as formulate_module
+from netlistdyn.base.errors import UsageError
+from netlistdyn.formulation.compile import compile_netlist, formulate, recompile
+from netlistdyn.frontend.parser import parse_file
+from netlistdyn.workflows.sweep import run_sweep
 
 from .conftest import NETLISTS
 

@@ -18,11 +18,11 @@ import pytest
 import sympy
 from click.testing import CliRunner
 
+from netlistdyn.base.errors import UsageError
 from netlistdyn.cli import main
-from netlistdyn.errors import UsageError
-from netlistdyn.formulate import compile_netlist
-from netlistdyn.parser import parse_file, parse_text
-from netlistdyn.symbolic import SYMBOLIC_STATE_LIMIT, symbolic_model
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.symbolic import SYMBOLIC_STATE_LIMIT, symbolic_model
+from netlistdyn.frontend.parser import parse_file, parse_text
 
 from .conftest import NETLISTS, compile_file
 

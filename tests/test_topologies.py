@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netlistdyn.analysis import analyze_eigenvalues
-from netlistdyn.parser import parse_file
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.frontend.parser import parse_file
 
 from .conftest import NETLISTS, compile_file, match_spectra
 from .mna import build_mna

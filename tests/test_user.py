@@ -40,8 +40,9 @@ import pytest  # noqa: E402
 from click.testing import CliRunner  # noqa: E402
 
 import netlistdyn  # noqa: E402
+from netlistdyn.base.formatting import eng  # noqa: E402
 from netlistdyn.cli import main  # noqa: E402
-from netlistdyn.display import eng, signal_units  # noqa: E402
+from netlistdyn.devices.units import signal_units  # noqa: E402
 
 CIRCUIT1 = NETLISTS / "circuit1.cir"
 #: Two compiles of the same netlist run the same operations: they agree to rounding.
@@ -123,7 +124,7 @@ def test_api_sweep_keeps_spelling_and_tracks_modes() -> None:
 
 
 def test_track_follows_crossing_modes() -> None:
-    from netlistdyn.sweep import track
+    from netlistdyn.workflows.sweep import track
 
     first = track(None, [[-1.0, 0.0], [-5.0, 0.0]])
     assert first == [[-1.0, 0.0], [-5.0, 0.0]]
@@ -186,7 +187,7 @@ def test_engineering_notation(value: float, unit: str, text: str) -> None:
 
 
 def test_signal_units_tell_circuits_from_mechanics() -> None:
-    from netlistdyn.parser import parse_file
+    from netlistdyn.frontend.parser import parse_file
 
     circuit = parse_file(CIRCUIT1)
     assert signal_units(circuit, ["v(a)", "i(L1)", "v(in,a)"]) == ("V", "A", "V")
@@ -248,7 +249,7 @@ def test_bad_numbers_and_tstep_beyond_tstop_are_refused(args: list[str], fragmen
 
 def test_symbolic_without_sympy_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "sympy", None)
-    monkeypatch.delitem(sys.modules, "netlistdyn.symbolic", raising=False)
+    monkeypatch.delitem(sys.modules, "netlistdyn.formulation.symbolic", raising=False)
     result = CliRunner().invoke(main, ["analyze", str(CIRCUIT1), "--symbolic"])
     assert result.exit_code == 2, result.output
     assert "pip install 'netlistdyn[symbolic]'" in result.output and "Traceback" not in result.output
@@ -299,7 +300,7 @@ def test_json_output_matches_its_schema(schema: str, args: list[str]) -> None:
 
 
 def test_validate_json_matches_its_schema() -> None:
-    from netlistdyn.spice import ngspice_missing
+    from netlistdyn.spice.ngspice import ngspice_missing
 
     if ngspice_missing():
         pytest.skip("ngspice is not installed")
@@ -383,7 +384,7 @@ def test_progress_is_silent_when_not_a_terminal(tmp_path: Path) -> None:
 
 
 def test_progress_on_a_terminal_ends_its_line(monkeypatch: pytest.MonkeyPatch) -> None:
-    from netlistdyn import progress
+    from netlistdyn.base import progress
 
     stream = io.StringIO()
     monkeypatch.setattr(sys, "stderr", stream)
@@ -415,8 +416,8 @@ def test_plots_use_the_extensions_format_and_the_ac_range(tmp_path: Path) -> Non
     pytest.importorskip("matplotlib")
     netlist = tmp_path / "rc.cir"
     netlist.write_text("rc\nV1 in 0 AC 1\nR1 in a 1k\nC1 a 0 1u\n.ac dec 10 10 100k\n")
-    from netlistdyn.parser import parse_file
-    from netlistdyn.plots import ac_range
+    from netlistdyn.frontend.parser import parse_file
+    from netlistdyn.io.plots import ac_range
 
     assert ac_range(parse_file(netlist)) == (10.0, 100e3)
     for suffix, magic in ((".png", b"\x89PNG"), (".svg", b"<?xml"), (".pdf", b"%PDF")):
@@ -431,7 +432,7 @@ def test_plots_use_the_extensions_format_and_the_ac_range(tmp_path: Path) -> Non
 
 def test_electrical_plots_are_not_labelled_with_mechanical_units(monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("matplotlib")
-    from netlistdyn import plots
+    from netlistdyn.io import plots
 
     figures = []
     monkeypatch.setattr(plots, "save_figure", lambda fig, path: figures.append(fig))
@@ -446,13 +447,13 @@ def test_electrical_plots_are_not_labelled_with_mechanical_units(monkeypatch: py
     assert [t.get_text() for t in electrical.get_xticklabels()][-1].endswith("s")
 
 
-def test_top_level_functions_survive_lazy_imports_of_the_stages() -> None:
-    """Importing a submodule binds it on the package: the stages named like the API functions are
-    imported before the functions take their names, so later imports do not shadow them."""
+def test_top_level_functions_survive_imports_of_the_stages() -> None:
+    """Importing a stage binds only its sub-package on ``netlistdyn``: no stage shadows an API function."""
     import importlib
 
-    for name in ("simulate", "sweep", "validate"):
-        importlib.import_module(f"netlistdyn.{name}")
+    for stage in ("simulation.foh", "workflows.sweep", "spice.validate", "formulation.symbolic"):
+        importlib.import_module(f"netlistdyn.{stage}")
+    for name in ("compile", "simulate", "sweep", "validate", "symbolic", "eigenvalues"):
         assert callable(getattr(netlistdyn, name)), name
 
 
@@ -460,8 +461,8 @@ def test_top_level_functions_survive_lazy_imports_of_the_stages() -> None:
 
 
 def test_reference_settings_and_their_accuracy_bound() -> None:
-    from netlistdyn.api import reference_accuracy, reference_settings
-    from netlistdyn.spice import SpiceSettings
+    from netlistdyn.spice.ngspice import SpiceSettings
+    from netlistdyn.workflows.pipelines import reference_accuracy, reference_settings
 
     base = SpiceSettings(tstep=1e-6, tstop=1.0, tmax=1e-4, reltol=1e-9)
     chosen = reference_settings(base, {"reltol": 1e-6, "maxstep": 1e-7})
@@ -479,7 +480,7 @@ def test_reference_settings_and_their_accuracy_bound() -> None:
 
 
 def test_validate_takes_the_users_reference_settings() -> None:
-    from netlistdyn.spice import ngspice_missing
+    from netlistdyn.spice.ngspice import ngspice_missing
 
     if ngspice_missing():
         pytest.skip("ngspice is not installed")

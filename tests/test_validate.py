@@ -18,7 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from netlistdyn.cli import main
-from netlistdyn.spice import ngspice_missing
+from netlistdyn.spice.ngspice import ngspice_missing
 
 from .conftest import NETLISTS
 
@@ -143,7 +143,7 @@ def test_horizon_from_eigenvalues_when_no_tran(tmp_path: Path) -> None:
 
 
 def test_missing_ngspice_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
-    import netlistdyn.spice as spice
+    import netlistdyn.spice.ngspice as spice
 
     monkeypatch.setattr(spice, "ngspice_missing", lambda: spice.INSTALL_HINT)
     result = CliRunner().invoke(main, ["validate", str(NETLISTS / "circuit1.cir")])
@@ -167,9 +167,9 @@ def test_analyze_works_without_pyspice() -> None:
 @needs_ngspice
 def test_ngspice_failure_is_reported_not_raised() -> None:
     """A stimulus ngspice cannot follow at these settings is a failed run with a message."""
-    from netlistdyn.parser import parse_file
-    from netlistdyn.probes import default_probes
-    from netlistdyn.spice import SpiceSettings, run_transient
+    from netlistdyn.circuit.probes import default_probes
+    from netlistdyn.frontend.parser import parse_file
+    from netlistdyn.spice.ngspice import SpiceSettings, run_transient
 
     net = parse_file(NETLISTS / "circuit1.cir")
     run = run_transient(net, default_probes(net), SpiceSettings(1e-3, 10.0, 1e-3), timeout=1e-9)

@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-import netlistdyn.parser
+import netlistdyn.frontend.parser
+from netlistdyn.circuit.netlist import Kind, Netlist
 from netlistdyn.cli import main
-from netlistdyn.netlist import Kind, Netlist
-from netlistdyn.spice import ngspice_missing, ngspice_source_name
+from netlistdyn.spice.ngspice import ngspice_missing, ngspice_source_name
 
 from .conftest import NETLISTS
 from .ngspice_reading import ngspice_available
@@ -52,13 +52,13 @@ def _validate(path: Path) -> tuple[int, dict]:
 
 
 def _patch_reader(monkeypatch: pytest.MonkeyPatch, change) -> None:
-    real = netlistdyn.parser.parse_file
+    real = netlistdyn.frontend.parser.parse_file
 
     def misreading(path, overrides=None):
         netlist: Netlist = real(path, overrides)
         return replace(netlist, elements=tuple(change(e) for e in netlist.elements))
 
-    monkeypatch.setattr(netlistdyn.parser, "parse_file", misreading)
+    monkeypatch.setattr(netlistdyn.frontend.parser, "parse_file", misreading)
 
 
 def _transient_passes(report: dict) -> bool:

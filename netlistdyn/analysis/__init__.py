@@ -1,0 +1,1 @@
+"""What a model says: eigenvalues and their checks, control properties, coordinates."""

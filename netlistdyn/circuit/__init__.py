@@ -1,0 +1,1 @@
+"""The netlist as data: elements, waveforms, expressions, output probes."""

@@ -1,0 +1,1 @@
+"""What each kind of device is: its equations and its mechanical analog."""

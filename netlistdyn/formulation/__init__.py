@@ -1,0 +1,1 @@
+"""From a netlist to equations: normal tree, reduction, descriptor and nonlinear systems."""

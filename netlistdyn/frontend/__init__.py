@@ -1,0 +1,1 @@
+"""Reading SPICE text into a :class:`~netlistdyn.circuit.netlist.Netlist`."""

@@ -1,0 +1,2234 @@
+"""Netlist text → :class:`~netlistdyn.circuit.netlist.Netlist`, read as ngspice 39 reads it.
+
+SPICE conventions: the first line is the title; ``*`` starts a comment line;
+``;`` (and ``$`` after white space) starts an inline comment; ``+`` continues
+the previous line; names are case-insensitive; ``0`` and ``gnd`` are ground;
+``.end`` ends the netlist. Fields are separated by white space, commas,
+``=`` and parentheses, except inside ``{...}`` or ``'...'`` expressions. Only
+``\\n``, ``\\r\\n`` and ``\\r`` end a line. Files are UTF-8, or Latin-1/cp1252
+(LTspice exports) when they are not valid UTF-8.
+
+Stages, none recursive in the size of the input:
+
+1. :func:`read_lines` reads logical lines, following ``.include`` and
+   ``.lib file section`` with an explicit stack.
+2. ``.if/.elseif/.else/.endif`` blocks are resolved, ``.subckt`` blocks split
+   off, ``.param`` definitions evaluated (ngspice semantics: the last
+   definition of a name wins everywhere, evaluated in dependency order).
+3. The expansion size of the subcircuit hierarchy is counted before anything
+   is expanded (refused above ``max_elements``), then the elements are built.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+import re
+import stat
+from collections import ChainMap
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
+from netlistdyn.base.values import read_number
+from netlistdyn.circuit.expressions import (
+    Expression,
+    ExpressionError,
+    NonlinearError,
+    evaluate,
+    linear_form,
+    parse,
+)
+from netlistdyn.circuit.netlist import (
+    GROUND,
+    STORAGE_KINDS,
+    Diagnostic,
+    DiodeModel,
+    Element,
+    InitialCondition,
+    Kind,
+    Netlist,
+    StepSpec,
+    TranSpec,
+)
+from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
+from netlistdyn.devices.mechanics import KEYWORDS, build_mechanical, resolve_rods
+
+#: Default limit on the number of elements after subcircuit expansion; raise it
+#: with ``parse_text/parse_file(..., max_elements=N)`` or the environment
+#: variable ``NETLISTDYN_MAX_ELEMENTS``.
+MAX_ELEMENTS = 1_000_000
+MAX_ELEMENTS_VARIABLE = "NETLISTDYN_MAX_ELEMENTS"
+#: Deepest subcircuit instance nesting accepted.
+MAX_SUBCIRCUIT_DEPTH = 100
+#: Most points a repeated PWL (``R=``) is unrolled to.
+MAX_PWL_POINTS = 1_000_000
+
+
+@dataclass(frozen=True, slots=True)
+class Line:
+    """One logical line (continuations joined, comments removed)."""
+
+    text: str
+    loc: SourceLocation
+
+
+# Directives that do not change the model: accepted with a warning.
+IGNORED_DIRECTIVES = frozenset(
+    {
+        ".print",
+        ".plot",
+        ".op",
+        ".ac",
+        ".dc",
+        ".save",
+        ".probe",
+        ".meas",
+        ".measure",
+        ".width",
+        ".four",
+        ".fourier",
+        ".noise",
+        ".disto",
+        ".sens",
+        ".tf",
+        ".nodeset",
+        ".csparam",
+        ".pz",
+        ".sp",
+        ".pss",
+        ".title",
+    }
+)
+NONLINEAR_DEVICES = {
+    "d": "a diode",
+    "q": "a bipolar transistor",
+    "m": "a MOSFET",
+    "j": "a JFET",
+    "z": "a MESFET",
+    "s": "a voltage-controlled switch",
+    "w": "a current-controlled switch",
+    "a": "an XSPICE code model",
+    "n": "a numerical (OSDI/Verilog-A) device",
+}
+OTHER_UNSUPPORTED = {
+    "t": "transmission line",
+    "o": "lossy transmission line",
+    "u": "distributed RC line",
+    "y": "lossy transmission line",
+    "p": "coupled transmission line",
+}
+SOURCE_FUNCTIONS = ("pulse", "sin", "pwl", "exp", "sffm", "am", "trnoise", "trrandom")
+_UNSUPPORTED_WAVEFORMS = ("sffm", "am")
+
+# --------------------------------------------------------------------------------------------
+# Reading files
+
+
+_LINE_END = re.compile(r"\r\n|\r|\n")
+
+
+def decode(data: bytes, where: SourceLocation, what: str = "netlist") -> str:
+    """Text of a netlist file: UTF-8 (BOM dropped), else cp1252/Latin-1.
+
+    Raises
+    ------
+    NetlistError
+        For binary data (a NUL byte).
+    """
+    if b"\0" in data:
+        raise NetlistError(f"cannot read {what}: not a text file (binary data)", where)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        try:
+            text = data.decode("cp1252")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+    return text.removeprefix("\ufeff")
+
+
+def read_source(path: Path, where: SourceLocation, what: str = "netlist") -> str:
+    """Read a regular text file (never blocks on a FIFO or reads a device).
+
+    Raises
+    ------
+    NetlistError
+        When the file is missing, unreadable, not a regular file or binary.
+    """
+    try:
+        info = os.stat(path)
+        if not stat.S_ISREG(info.st_mode):
+            raise NetlistError(f"cannot read {what} {str(path)!r}: not a regular file", where)
+        data = path.read_bytes()
+    except OSError as exc:
+        raise NetlistError(f"cannot read {what} {str(path)!r}: {exc.strerror or exc}", where) from None
+    return decode(data, where, f"{what} {str(path)!r}")
+
+
+def _strip_inline_comment(text: str) -> str:
+    if ";" not in text and "$" not in text:
+        return text
+    depth = 0
+    quoted = False
+    for i, char in enumerate(text):
+        if char == "'":
+            quoted = not quoted
+        elif char == "{":
+            depth += 1
+        elif char == "}":
+            depth -= 1
+        elif (
+            depth <= 0 and not quoted and (char == ";" or (char == "$" and (i == 0 or text[i - 1] in " \t")))
+        ):
+            return text[:i].rstrip()
+    return text
+
+
+def _logical_lines(path: Path, text: str, has_title: bool) -> tuple[str, list[Line]]:
+    """Join continuations and drop comments of one file's text (linear time)."""
+    physical = _LINE_END.split(text)
+    if physical and physical[-1] == "":
+        physical.pop()
+    title = physical[0].strip() if has_title and physical else ""
+    start = 1 if has_title else 0
+    lines: list[Line] = []
+    parts: list[str] = []
+    first_loc: SourceLocation | None = None
+    name = str(path)
+
+    def flush() -> None:
+        if parts:
+            assert first_loc is not None
+            lines.append(Line(" ".join(parts), first_loc))
+            parts.clear()
+
+    for number in range(start, len(physical)):
+        stripped = physical[number].strip()
+        if not stripped or stripped[0] == "*":
+            continue
+        body = _strip_inline_comment(stripped)
+        if not body:
+            continue
+        if body[0] == "+":
+            if not parts:
+                raise NetlistError(
+                    "continuation line '+' with no line to continue", SourceLocation(name, number + 1)
+                )
+            rest = body[1:].strip()
+            if rest:
+                parts.append(rest)
+            continue
+        flush()
+        parts.append(body)
+        first_loc = SourceLocation(name, number + 1)
+    flush()
+    return title, lines
+
+
+def _quoted_name(text: str) -> str:
+    text = text.strip()
+    if len(text) >= 2 and text[0] in "'\"" and text[-1] == text[0]:
+        return text[1:-1]
+    return text
+
+
+def _lib_section(lines: list[Line], section: str, target: Path, loc: SourceLocation) -> list[Line]:
+    out: list[Line] = []
+    inside = False
+    for line in lines:
+        words = line.text.split()
+        word = words[0].lower()
+        if not inside:
+            if word == ".lib" and len(words) == 2 and words[1].lower() == section:
+                inside = True
+            continue
+        if word == ".endl":
+            return out
+        out.append(line)
+    if inside:
+        raise NetlistError(f".lib {target.name} {section}: no .endl after the section", loc)
+    raise NetlistError(f".lib: section {section!r} not found in {target.name}", loc)
+
+
+@dataclass
+class _Frame:
+    lines: list[Line]
+    path: Path
+    chain: tuple[Path, ...]
+    index: int = 0
+
+
+def read_lines(path: Path, text: str, notes: list[Diagnostic] | None = None) -> tuple[str, list[Line]]:
+    """Split netlist text into its title and logical lines.
+
+    ``.include`` files and ``.lib file section`` sections are read in place
+    (paths relative to the including file), with an explicit stack so that
+    long include chains do not recurse; an include loop is an error.
+    ``.lib name`` ... ``.endl`` blocks met while reading are library
+    sections, skipped unless called.
+
+    Parameters
+    ----------
+    path : Path
+        File the text came from (for locations and relative includes).
+    text : str
+        Contents of the file.
+    notes : list of Diagnostic, optional
+        Receives notes (e.g. an LTspice ``.lib file`` read as an include).
+
+    Returns
+    -------
+    title : str
+        First line.
+    lines : list of Line
+        Logical lines after the title, up to ``.end``.
+    """
+    title, first = _logical_lines(path, text, True)
+    out: list[Line] = []
+    stack = [_Frame(first, path, (path.resolve(),))]
+    while stack:
+        frame = stack[-1]
+        if frame.index >= len(frame.lines):
+            stack.pop()
+            continue
+        line = frame.lines[frame.index]
+        frame.index += 1
+        words = line.text.split(None, 1)
+        word = words[0].lower()
+        if word == ".end":
+            if len(stack) == 1:
+                break
+            continue
+        if word in (".include", ".inc", ".incl"):
+            if len(words) < 2:
+                raise NetlistError(f"{word} needs a file name", line.loc)
+            stack.append(_open_include(frame, _quoted_name(words[1]), line, word))
+            continue
+        if word == ".lib":
+            args = words[1].split() if len(words) > 1 else []
+            if len(args) >= 2:
+                child = _open_include(frame, _quoted_name(" ".join(args[:-1])), line, ".lib")
+                child.lines = _lib_section(child.lines, args[-1].lower(), child.path, line.loc)
+                stack.append(child)
+                continue
+            if len(args) == 1:
+                end = next(
+                    (
+                        k
+                        for k in range(frame.index, len(frame.lines))
+                        if frame.lines[k].text.split()[0].lower() == ".endl"
+                    ),
+                    None,
+                )
+                if end is not None:  # a library section: read only when called
+                    frame.index = end + 1
+                    continue
+                # LTspice: ".lib file" includes the whole file
+                if notes is not None:
+                    notes.append(
+                        Diagnostic(line.loc, f".lib {args[0]} read as an include of the whole file (LTspice)")
+                    )
+                stack.append(_open_include(frame, _quoted_name(args[0]), line, ".lib"))
+                continue
+            raise NetlistError(".lib needs a file name and a section", line.loc)
+        if word == ".endl":
+            continue
+        out.append(line)
+    return title, out
+
+
+def _open_include(frame: _Frame, name: str, line: Line, word: str) -> _Frame:
+    target = (frame.path.parent / os.path.expanduser(name)).resolve()
+    if target in frame.chain:
+        cycle = " -> ".join(p.name for p in (*frame.chain[frame.chain.index(target) :], target))
+        raise NetlistError(f"include loop: {cycle}", line.loc)
+    text = read_source(target, line.loc, f"{word} file")
+    _, lines = _logical_lines(target, text, False)
+    return _Frame(lines, target, (*frame.chain, target))
+
+
+# --------------------------------------------------------------------------------------------
+# Fields
+
+_CHUNK = re.compile(r"[{}']|[^\s,=(){}']+|=|[()]|[\s,]+")
+
+
+def split_fields(text: str, keep_parens: bool = False) -> list[str]:
+    """Split a logical line into fields (SPICE delimiters; braces and quotes kept whole).
+
+    Raises
+    ------
+    ValueError
+        For an unclosed ``{`` or ``'`` or an unmatched ``}``.
+    """
+    if "{" not in text and "'" not in text and "}" not in text:
+        tokens = re.findall(r"[^\s,=()]+|=|[()]", text)
+        return tokens if keep_parens else [t for t in tokens if t not in "()"]
+    fields: list[str] = []
+    current: list[str] = []
+    depth = 0
+    quoted = False
+    for chunk in _CHUNK.findall(text):
+        if quoted:
+            current.append(chunk)
+            if chunk == "'":
+                quoted = False
+                if depth == 0:
+                    fields.append("".join(current))
+                    current.clear()
+            continue
+        if chunk == "'" and depth == 0:
+            if current:
+                fields.append("".join(current))
+                current.clear()
+            current.append(chunk)
+            quoted = True
+            continue
+        if chunk == "{":
+            if depth == 0 and current:
+                fields.append("".join(current))
+                current.clear()
+            depth += 1
+            current.append(chunk)
+            continue
+        if chunk == "}":
+            if depth == 0:
+                raise ValueError("unmatched '}'")
+            depth -= 1
+            current.append(chunk)
+            if depth == 0:
+                fields.append("".join(current))
+                current.clear()
+            continue
+        if depth:
+            current.append(chunk)
+            continue
+        if chunk[0].isspace() or chunk[0] == ",":
+            if current:
+                fields.append("".join(current))
+                current.clear()
+            continue
+        if chunk in ("=", "(", ")"):
+            if current:
+                fields.append("".join(current))
+                current.clear()
+            if chunk == "=" or keep_parens:
+                fields.append(chunk)
+            continue
+        current.append(chunk)
+    if quoted:
+        raise ValueError("unclosed quote (')")
+    if depth:
+        raise ValueError("unclosed brace '{'")
+    if current:
+        fields.append("".join(current))
+    return fields
+
+
+def tokenize(text: str) -> list[str]:
+    """Split a logical line into fields (parentheses dropped); see :func:`split_fields`."""
+    return split_fields(text)
+
+
+def _fields(line: Line, keep_parens: bool = False) -> list[str]:
+    try:
+        return split_fields(line.text, keep_parens)
+    except ValueError as exc:
+        name = line.text.split()[0]
+        raise NetlistError(f"{name}: {exc} (ngspice refuses it too)", line.loc) from None
+
+
+def _node(name: str) -> str:
+    low = name.lower()
+    return GROUND if low in ("0", "gnd") else low
+
+
+def _short(text: str, limit: int = 40) -> str:
+    """``text`` cut to ``limit`` characters for a one-line message."""
+    return text if len(text) <= limit else f"{text[: limit - 3]}..."
+
+
+def _is_expr(token: str) -> bool:
+    return bool(token) and token[0] in "{'"
+
+
+def _unwrap(token: str) -> str:
+    if len(token) >= 2 and ((token[0] == "{" and token[-1] == "}") or (token[0] == "'" and token[-1] == "'")):
+        return token[1:-1]
+    return token
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+
+_EQ_SCAN = re.compile(r"==|!=|<=|>=|[{}()'=]")
+_LAST_IDENT = re.compile(r"([A-Za-z_][A-Za-z0-9_.]*)\s*$")
+
+
+def param_assignments(text: str, loc: SourceLocation, what: str = ".param") -> list[tuple[str, str]]:
+    """``name=value`` pairs of a ``.param`` line (or ``params:`` list), in linear time.
+
+    A value may be a bare expression with spaces (``.param x = 2*a + 1``);
+    an ``=`` inside braces, quotes, parentheses or a comparison does not
+    start a new assignment.
+    """
+    equals: list[int] = []
+    depth = 0
+    quoted = False
+    for match in _EQ_SCAN.finditer(text):
+        token = match.group(0)
+        if token == "'":
+            quoted = not quoted
+        elif quoted:
+            continue
+        elif token in "{(":
+            depth += 1
+        elif token in "})":
+            depth -= 1
+        elif token == "=" and depth == 0:
+            equals.append(match.start())
+    if not equals:
+        raise NetlistError(f"{what}: expected name=value, got {text.strip()!r}", loc)
+    out: list[tuple[str, str]] = []
+    names: list[tuple[str, int, int]] = []  # name, start of name, end of "="
+    prev = 0
+    for pos in equals:
+        segment = text[prev:pos]
+        found = _LAST_IDENT.search(segment)
+        if found is None:
+            raise NetlistError(f"{what}: expected a name before '=' in {text.strip()!r}", loc)
+        names.append((found.group(1), prev + found.start(), pos + 1))
+        prev = pos + 1
+    if text[: names[0][1]].strip():
+        raise NetlistError(f"{what}: unexpected {text[: names[0][1]].strip()!r}", loc)
+    for k, (name, _, value_start) in enumerate(names):
+        value_end = names[k + 1][1] if k + 1 < len(names) else len(text)
+        expr = text[value_start:value_end].strip().rstrip(",").strip()
+        if not expr:
+            raise NetlistError(f"{what} {name}: missing value", loc)
+        out.append((name, expr))
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class _Definition:
+    name: str  # as written
+    expr: str
+    loc: SourceLocation
+
+
+_Functions = dict[str, tuple[tuple[str, ...], Expression]]
+_NUMBER_START = frozenset("0123456789.+-")
+
+
+def _value_expression(expr: str) -> str:
+    return _unwrap(expr.strip())
+
+
+def evaluate_definitions(
+    definitions: Iterable[_Definition],
+    scope: Mapping[str, float],
+    functions: _Functions,
+    warnings: list[Diagnostic] | None,
+    fixed: Mapping[str, float] | None = None,
+) -> dict[str, float]:
+    """Evaluate parameter definitions as ngspice 39 does.
+
+    The last definition of a name (case-insensitive) wins, also in
+    expressions written before it; definitions are evaluated in dependency
+    order (iteratively). A redefinition is warned about.
+
+    Parameters
+    ----------
+    definitions : iterable of _Definition
+        In file order.
+    scope : Mapping[str, float]
+        Enclosing parameter values (globals, or an instance's caller).
+    functions : dict
+        ``.func`` definitions.
+    warnings : list of Diagnostic, optional
+        Receives redefinition warnings.
+    fixed : Mapping[str, float], optional
+        Values that replace a definition (command-line overrides, instance
+        parameters).
+
+    Returns
+    -------
+    dict
+        The new parameter values by lower-case name.
+    """
+    final: dict[str, _Definition] = {}
+    for definition in definitions:
+        key = definition.name.lower()
+        previous = final.get(key)
+        if previous is not None and warnings is not None:
+            same = "" if previous.name == definition.name else f" (as {previous.name})"
+            warnings.append(
+                Diagnostic(
+                    definition.loc,
+                    f"parameter {definition.name} is defined again (first{same} at {previous.loc}); "
+                    "names are case-insensitive, and as in ngspice the last definition is used everywhere",
+                )
+            )
+        final[key] = definition
+    fixed = fixed or {}
+    values: dict[str, float] = {k: v for k, v in fixed.items() if k in final}
+    parsed: dict[str, Expression] = {}
+    for key, definition in final.items():
+        if key in values:
+            continue
+        text = _value_expression(definition.expr)
+        if text[:1] in _NUMBER_START:  # a plain number: no expression to parse
+            reading = read_number(text)
+            if reading is not None and math.isfinite(reading.value) and not reading.note:
+                values[key] = reading.value
+                continue
+        try:
+            parsed[key] = parse(text)
+        except ExpressionError as exc:
+            raise NetlistError(f".param {definition.name}: {exc}", definition.loc) from None
+    chain: Mapping[str, float] = ChainMap(values, scope) if scope else values
+    state: dict[str, int] = {}  # 1: in progress, 2: done
+    for root in parsed:
+        if root in values:
+            continue
+        stack = [root]
+        while stack:
+            key = stack[-1]
+            if key in values:
+                stack.pop()
+                continue
+            if state.get(key) == 1:
+                # all dependencies done: evaluate
+                definition = final[key]
+                try:
+                    values[key] = evaluate(parsed[key], chain, functions)
+                except ExpressionError as exc:
+                    raise NetlistError(f".param {definition.name}: {exc}", definition.loc) from None
+                state[key] = 2
+                stack.pop()
+                continue
+            state[key] = 1
+            for dep in parsed[key].names:
+                if dep in parsed and dep not in values:
+                    if state.get(dep) == 1:
+                        raise NetlistError(
+                            f".param {final[dep].name}: defined in terms of itself (via {final[key].name})",
+                            final[dep].loc,
+                        )
+                    stack.append(dep)
+    return values
+
+
+def evaluate_params(lines: list[Line], overrides: Mapping[str, float]) -> dict[str, float]:
+    """Evaluate every top-level ``.param`` (see :func:`evaluate_definitions`), applying overrides.
+
+    Raises
+    ------
+    UsageError
+        An override names a parameter the netlist does not define.
+    """
+    definitions = [
+        _Definition(name, expr, line.loc)
+        for line in lines
+        if line.text.split()[0].lower() == ".param"
+        for name, expr in _param_line(line)
+    ]
+    lowered = {k.lower(): v for k, v in overrides.items()}
+    defined = {d.name.lower() for d in definitions}
+    missing = sorted(set(lowered) - defined)
+    if missing:
+        raise UsageError(f"--param {missing[0]}: the netlist defines no .param {missing[0]}")
+    return evaluate_definitions(definitions, {}, {}, None, lowered)
+
+
+def _param_line(line: Line) -> list[tuple[str, str]]:
+    parts = line.text.split(None, 1)
+    if len(parts) < 2:
+        raise NetlistError(".param needs name=value", line.loc)
+    _check_closed(line)
+    return param_assignments(parts[1], line.loc)
+
+
+def _check_closed(line: Line) -> None:
+    _fields(line)
+
+
+# --------------------------------------------------------------------------------------------
+# Values
+
+
+class _Values:
+    """Evaluates value fields against a parameter scope."""
+
+    def __init__(
+        self, params: Mapping[str, float], functions: _Functions, warnings: list[Diagnostic]
+    ) -> None:
+        self.params = params
+        self.functions = functions
+        self.warnings = warnings
+
+    def scoped(self, params: Mapping[str, float]) -> _Values:
+        return _Values(params, self.functions, self.warnings)
+
+    def number(self, token: str, loc: SourceLocation, what: str) -> float:
+        if _is_expr(token):
+            try:
+                value = evaluate(_unwrap(token), self.params, self.functions)
+            except ExpressionError as exc:
+                raise NetlistError(f"{what}: {exc}", loc) from None
+        else:
+            reading = read_number(token)
+            if reading is None:
+                low = token.lower()
+                if low in self.params:  # ngspice 39 accepts a bare parameter name as a value
+                    return self.params[low]
+                raise NetlistError(f"{what}: expected a number, got {_short(token)!r}", loc)
+            if reading.note:
+                self.warnings.append(Diagnostic(loc, f"{what}: {reading.note}"))
+            value = reading.value
+        if not math.isfinite(value):
+            raise NetlistError(f"{what}: value is not finite ({_short(token)} is out of range)", loc)
+        return value
+
+    def is_value(self, token: str) -> bool:
+        return _is_expr(token) or read_number(token) is not None or token.lower() in self.params
+
+
+# --------------------------------------------------------------------------------------------
+# Element lines
+
+
+@dataclass
+class _Context:
+    """What element builders need besides the line."""
+
+    values: _Values
+    warnings: list[Diagnostic]
+    models: dict[str, tuple[str, dict[str, str], SourceLocation]]
+    temp: float | None
+    tran: TranSpec | None
+    tnom: float = 27.0
+
+
+def _split_keywords(
+    fields: list[str], start: int, name: str, loc: SourceLocation
+) -> tuple[list[str], dict[str, str]]:
+    """Positional fields and ``key=value`` pairs after index ``start``."""
+    positional: list[str] = []
+    keywords: dict[str, str] = {}
+    i = start
+    while i < len(fields):
+        if i + 1 < len(fields) and fields[i + 1] == "=":
+            if i + 2 >= len(fields):
+                raise NetlistError(f"{name}: {fields[i]}= has no value", loc)
+            key = fields[i].lower()
+            if key in keywords:
+                raise NetlistError(f"{name}: {fields[i]}= given twice", loc)
+            keywords[key] = _braced_if_expression(fields[i + 2])
+            i += 3
+            continue
+        if fields[i] == "=":
+            raise NetlistError(f"{name}: '=' without a name", loc)
+        positional.append(fields[i])
+        i += 1
+    return positional, keywords
+
+
+def _braced_if_expression(token: str) -> str:
+    """A ``key=value`` value as ngspice's numparam reads it: ``R=VAL1+VAL2`` (no blanks) is the
+    expression ``{VAL1+VAL2}`` (measured: 5 with VAL1=2, VAL2=3), while a positional ``VAL1*VAL2``
+    stays an error, as in ngspice."""
+    if _is_expr(token) or read_number(token) is not None or not re.search(r"[-+*/^]", token[1:]):
+        return token
+    return "{" + token + "}"
+
+
+_PASSIVE = {
+    "r": (Kind.RESISTOR, ("r", "resistance", "value"), "resistance"),
+    "c": (Kind.CAPACITOR, ("c", "capacitance", "value"), "capacitance"),
+    "l": (Kind.INDUCTOR, ("l", "inductance", "value"), "inductance"),
+}
+# Keywords with no effect on the model: noise parameters, and LTspice's part ratings and
+# catalogue fields (voltage/current/power ratings, tolerance, manufacturer, part number).
+_RATINGS = {"mfg": "", "pn": "", "type": "", "pppkg": ""}
+_PASSIVE_IGNORED = {
+    "r": {"noisy": "", "kf": "", "af": "", "bv_max": "", "tol": "", "pwr": "", **_RATINGS},
+    "c": {"bv_max": "", "v": "", "irms": "", "rpeak": "", "tol": "", **_RATINGS},
+    "l": {"ipk": "", "rpeak": "", "irms": "", "tol": "", **_RATINGS},
+}
+_LTSPICE_PARASITICS = {"r": (), "c": ("rser", "lser", "rpar", "cpar"), "l": ("rser", "rpar", "cpar")}
+
+
+def _temperature_factor(
+    name: str, tc1: float, tc2: float, keywords: dict[str, str], ctx: _Context, loc: SourceLocation
+) -> float:
+    if not tc1 and not tc2:
+        return 1.0
+    nominal = ctx.tnom
+    temp = ctx.temp if ctx.temp is not None else 27.0
+    if "temp" in keywords:
+        temp = ctx.values.number(keywords["temp"], loc, f"{name} temp")
+    if "dtemp" in keywords:
+        temp = temp + ctx.values.number(keywords["dtemp"], loc, f"{name} dtemp")
+    dt = temp - nominal
+    return 1.0 + tc1 * dt + tc2 * dt * dt
+
+
+def _build_passive(line: Line, fields: list[str], ctx: _Context) -> list[Element]:
+    name = fields[0]
+    letter = name[0].lower()
+    loc = line.loc
+    kind, value_keys, quantity = _PASSIVE[letter]
+    if len(fields) < 3:
+        raise NetlistError(f"{name}: expected 2 nodes, got {len(fields) - 1}", loc)
+    nodes = (_node(fields[1]), _node(fields[2]))
+    positional, keywords = _split_keywords(fields, 3, name, loc)
+    if letter in "cl":
+        storage = _nonlinear_storage(name, letter, nodes, positional, keywords, ctx, loc)
+        if storage is not None:
+            return [storage]
+    values = ctx.values
+    value: float | None = None
+    model: tuple[str, dict[str, str], SourceLocation] | None = None
+    for token in positional:
+        if value is None and values.is_value(token):
+            value = values.number(token, loc, name)
+        elif model is None and token.lower() in ctx.models:
+            model = ctx.models[token.lower()]
+            mtype = model[0]
+            if mtype[0] != letter and not (letter == "r" and mtype == "res"):
+                raise NetlistError(
+                    f"{name}: model {token} is a {mtype.upper()} model, not {letter.upper()}", loc
+                )
+        else:
+            raise NetlistError(f"{name}: unexpected field {token!r} (ngspice refuses it too)", loc)
+    for key in value_keys:
+        if key in keywords:
+            if value is not None:
+                raise NetlistError(f"{name}: the {quantity} is given twice", loc)
+            value = values.number(keywords.pop(key), loc, name)
+    mult = values.number(keywords.pop("m"), loc, f"{name} m") if "m" in keywords else 1.0
+    if mult <= 0:
+        raise NetlistError(f"{name}: m= must be positive, got {mult:g}", loc)
+    ic = values.number(keywords.pop("ic"), loc, f"{name} IC") if letter in "cl" and "ic" in keywords else None
+    tc1 = values.number(keywords.pop("tc1"), loc, f"{name} tc1") if "tc1" in keywords else 0.0
+    tc2 = values.number(keywords.pop("tc2"), loc, f"{name} tc2") if "tc2" in keywords else 0.0
+    ac_value = (
+        values.number(keywords.pop("ac"), loc, f"{name} ac") if letter == "r" and "ac" in keywords else None
+    )
+    length = values.number(keywords.pop("l"), loc, f"{name} l") if letter == "r" and "l" in keywords else None
+    width = values.number(keywords.pop("w"), loc, f"{name} w") if letter == "r" and "w" in keywords else None
+    parasitics = {k: keywords.pop(k) for k in _LTSPICE_PARASITICS[letter] if k in keywords}
+    for key in _PASSIVE_IGNORED[letter]:  # no effect on the model
+        keywords.pop(key, None)
+    temp_keys = {k: keywords.pop(k) for k in ("temp", "dtemp") if k in keywords}
+    if keywords:
+        key = next(iter(keywords))
+        raise NetlistError(f"{name}: unknown parameter {key}= on {quantity} element", loc)
+    if model is not None:
+        mparams = model[1]
+        tc1 = tc1 or (values.number(mparams["tc1"], model[2], "tc1") if "tc1" in mparams else 0.0)
+        tc2 = tc2 or (values.number(mparams["tc2"], model[2], "tc2") if "tc2" in mparams else 0.0)
+        if value is None and letter == "r" and "rsh" in mparams and length is not None:
+            rsh = values.number(mparams["rsh"], model[2], "rsh")
+            short = values.number(mparams["short"], model[2], "short") if "short" in mparams else 0.0
+            narrow = values.number(mparams["narrow"], model[2], "narrow") if "narrow" in mparams else 0.0
+            w = width if width is not None else values.number(mparams.get("defw", "10u"), model[2], "defw")
+            value = rsh * (length - short) / (w - narrow)
+        if value is None and letter == "r":
+            for key in ("r", "res"):
+                if key in mparams:
+                    value = values.number(mparams[key], model[2], f"model {key}")
+                    break
+        allowed = {"tc1", "tc2", "tnom", "bv_max"}
+        if letter == "r":
+            allowed |= {"r", "res", "rsh", "short", "narrow", "defw", "kf", "af", "noisy"}
+        unknown = sorted(set(mparams) - allowed)
+        if unknown:
+            raise NetlistError(f"{name}: model parameter {unknown[0]} is not supported", loc)
+        if "tnom" in mparams and (tc1 or tc2):
+            raise NetlistError(f"{name}: a model TNOM with temperature coefficients is not supported", loc)
+    elif length is not None or width is not None:
+        raise NetlistError(f"{name}: l=/w= need a resistor model with RSH", loc)
+    if value is None:
+        raise NetlistError(f"{name}: missing {quantity}", loc)
+    value *= _temperature_factor(name, tc1, tc2, temp_keys, ctx, loc)
+    value = value * mult if letter == "c" else value / mult
+    if ac_value is not None and ac_value != value:
+        ctx.warnings.append(
+            Diagnostic(
+                loc,
+                f"{name}: ac={ac_value:g} is used by ngspice only in .ac analysis; the model uses {value:g}",
+            )
+        )
+    element = Element(kind, name, nodes, value, loc, ic=ic)
+    _check_value(element, ctx.warnings)
+    if not parasitics:
+        return [element]
+    return _ltspice_parasitics(element, parasitics, ctx)
+
+
+def _reads_solution(token: str) -> bool:
+    """True when a value reads the circuit's solution (``v()``, ``i()``) or ``time``."""
+    try:
+        expr = parse(_unwrap(token))
+    except ExpressionError:
+        return False
+    return expr.refs or "time" in expr.names
+
+
+def _nonlinear_storage(
+    name: str,
+    letter: str,
+    nodes: tuple[str, str],
+    positional: list[str],
+    keywords: dict[str, str],
+    ctx: _Context,
+    loc: SourceLocation,
+) -> Element | None:
+    """ngspice's nonlinear ``C={expr}``, ``Q={expr}`` and ``L={expr}`` (None: an ordinary value)."""
+    key = "q" if letter == "c" and "q" in keywords else letter
+    text = keywords.get(key)
+    if any(_reads_solution(t) for t in positional):
+        raise NetlistError(
+            f"{name}: a value that reads v(), i() or time is written {letter.upper()}={{...}}"
+            + (" or Q={...}" if letter == "c" else ""),
+            loc,
+        )
+    if key != "q" and (text is None or not _reads_solution(text)):
+        return None
+    assert text is not None
+    others = sorted(set(keywords) - {key})
+    if others or positional:
+        what = f"{others[0]}=" if others else repr(positional[0])
+        raise NetlistError(f"{name}: {what} beside a nonlinear {key.upper()}= is not supported", loc)
+    from netlistdyn.devices.models import Behaviour, fold
+
+    try:
+        folded = fold(_unwrap(text), ctx.values.params, ctx.values.functions)
+        Behaviour.from_text(folded)
+    except ExpressionError as exc:
+        raise NetlistError(f"{name}: {exc}", loc) from None
+    kind = {"c": Kind.CAPACITANCE, "q": Kind.CHARGE, "l": Kind.INDUCTANCE}[key]
+    return Element(kind, name, nodes, 1.0, loc, expression=folded)
+
+
+def _ltspice_parasitics(element: Element, parasitics: dict[str, str], ctx: _Context) -> list[Element]:
+    """LTspice ``Rser=``/``Lser=`` in series and ``Rpar=``/``Cpar=`` across the whole element."""
+    loc = element.loc
+    name = element.name
+    vals = {k: ctx.values.number(v, loc, f"{name} {k}") for k, v in parasitics.items()}
+    plus, minus = element.nodes
+    out: list[Element] = []
+    series = [(Kind.RESISTOR, "Rser", vals["rser"])] if vals.get("rser") else []
+    if vals.get("lser"):
+        series.append((Kind.INDUCTOR, "Lser", vals["lser"]))
+    node = minus
+    inner_nodes = [f"{element.key}.{label.lower()}" for _, label, _ in series]
+    main_minus = inner_nodes[0] if inner_nodes else minus
+    out.append(replace(element, nodes=(plus, main_minus)))
+    for k, (kind, label, value) in enumerate(series):
+        node = inner_nodes[k + 1] if k + 1 < len(inner_nodes) else minus
+        out.append(Element(kind, f"{name}.{label}", (inner_nodes[k], node), value, loc))
+    if vals.get("rpar"):
+        out.append(Element(Kind.RESISTOR, f"{name}.Rpar", (plus, minus), vals["rpar"], loc))
+    if vals.get("cpar"):
+        out.append(Element(Kind.CAPACITOR, f"{name}.Cpar", (plus, minus), vals["cpar"], loc))
+    for extra in out[1:]:
+        _check_value(extra, ctx.warnings)
+    return out
+
+
+def _check_value(element: Element, warnings: list[Diagnostic]) -> None:
+    if element.value == 0:
+        raise NetlistError(f"{element.label}: value is zero", element.loc)
+    if element.value < 0:
+        warnings.append(Diagnostic(element.loc, f"{element.label} has a negative value ({element.value:g})"))
+
+
+def _waveform_parens_only(fields: list[str]) -> list[str]:
+    """Keep the outer parentheses of ``PULSE(...)`` and the like; others are delimiters (``dc(5)``)."""
+    out: list[str] = []
+    depth = 0  # > 0 inside a waveform's parentheses
+    for k, token in enumerate(fields):
+        if token == "(":
+            if depth:
+                depth += 1
+            elif k > 0 and fields[k - 1].lower() in SOURCE_FUNCTIONS:
+                depth = 1
+                out.append(token)
+            continue
+        if token == ")":
+            if depth == 1:
+                out.append(token)
+            depth = max(depth - 1, 0)
+            continue
+        out.append(token)
+    return out
+
+
+def _parse_source(
+    fields: list[str], loc: SourceLocation, ctx: _Context, name: str
+) -> tuple[float, Waveform | None, float | None]:
+    """``[DC] v [AC mag [phase]] [DISTOF1/2 ...] [PULSE(...)|...] [portnum n] [z0 z]`` of a source.
+
+    Returns
+    -------
+    dc : float
+    waveform : Waveform or None
+    z0 : float or None
+        Series resistance of an S-parameter port (``portnum``), else ``None``.
+    """
+    values = ctx.values
+    leading: float | None = None
+    dc_keyword: float | None = None
+    waveform: Waveform | None = None
+    portnum: float | None = None
+    z0: float | None = None
+    seen_any = False
+    i = 0
+    n = len(fields)
+
+    def take_values(start: int, most: int) -> tuple[list[str], int]:
+        out: list[str] = []
+        j = start
+        while j < n and len(out) < most and fields[j] not in ("(", ")", "=") and values.is_value(fields[j]):
+            if j + 1 < n and fields[j + 1] == "=":
+                break
+            out.append(fields[j])
+            j += 1
+        return out, j
+
+    def one_value(at: int, label: str, what: str) -> tuple[float, int]:
+        """The number after keyword ``fields[at]`` and the index past it; refused when missing."""
+        got, after = take_values(at + 1, 1)
+        if not got:
+            raise NetlistError(f"{name}: {label} needs {what}", loc)
+        return values.number(got[0], loc, f"{name} {label}"), after
+
+    while i < n:
+        token = fields[i]
+        word = token.lower()
+        if token in ("(", ")"):
+            raise NetlistError(f"{name}: unexpected parenthesis", loc)
+        keyword_form = i + 1 < n and fields[i + 1] == "="
+        if keyword_form:
+            if i + 2 >= n:
+                raise NetlistError(f"{name}: {token}= has no value", loc)
+            raw = fields[i + 2]
+            if word == "dc":
+                dc_keyword = values.number(raw, loc, f"{name} dc")
+            elif word == "ac":
+                values.number(raw, loc, f"{name} ac")
+            elif word == "portnum":
+                portnum = values.number(raw, loc, f"{name} portnum")
+            elif word == "z0":
+                z0 = values.number(raw, loc, f"{name} z0")
+            else:
+                raise NetlistError(
+                    f"{name}: unknown parameter {token}= on a source (ngspice refuses it too)", loc
+                )
+            i += 3
+            seen_any = True
+            continue
+        if word == "dc":
+            if take_values(i + 1, 1)[0]:
+                dc_keyword, i = one_value(i, "DC", "a value")
+            else:  # ngspice 39 reads a DC keyword without a value as DC 0 (measured)
+                dc_keyword, i = 0.0, i + 1
+                ctx.warnings.append(
+                    Diagnostic(loc, f"{name}: DC without a value is DC 0, as ngspice reads it")
+                )
+        elif word in ("ac", "distof1", "distof2"):
+            _, i = take_values(i + 1, 2)  # magnitude and phase: small-signal only
+        elif word == "portnum":
+            portnum, i = one_value(i, "portnum", "a number")
+        elif word == "z0":
+            z0, i = one_value(i, "z0", "a value")
+        elif word in SOURCE_FUNCTIONS:
+            if waveform is not None:
+                raise NetlistError(f"{name}: a second waveform {token.upper()}", loc)
+            if word in _UNSUPPORTED_WAVEFORMS:
+                raise NetlistError(f"{name}: {word.upper()} sources are not supported", loc)
+            waveform, i = _parse_waveform_call(word, fields, i + 1, loc, ctx, name)
+        elif values.is_value(token):
+            if seen_any:
+                raise NetlistError(
+                    f"{name}: unexpected value {token!r} (one DC value per source; ngspice refuses it too)",
+                    loc,
+                )
+            leading = values.number(token, loc, name)
+            i += 1
+        else:
+            raise NetlistError(f"{name}: unexpected field {token!r}", loc)
+        seen_any = True
+    # ngspice 39: a leading value wins over DC keywords; among DC keywords the last wins.
+    dc = leading if leading is not None else (dc_keyword if dc_keyword is not None else 0.0)
+    if portnum is not None and z0 is None:
+        z0 = 50.0
+    if z0 is not None and portnum is None:
+        raise NetlistError(f"{name}: z0 without portnum", loc)
+    if z0 is not None and z0 <= 0:
+        raise NetlistError(f"{name}: z0 must be positive", loc)
+    return dc, waveform, z0
+
+
+def _parse_waveform_call(
+    kind: str, fields: list[str], i: int, loc: SourceLocation, ctx: _Context, name: str
+) -> tuple[Waveform, int]:
+    values = ctx.values
+    n = len(fields)
+    parens = i < n and fields[i] == "("
+    if parens:
+        i += 1
+    args: list[float] = []
+    keywords: dict[str, str] = {}
+    while i < n:
+        token = fields[i]
+        if token == ")":
+            if not parens:
+                raise NetlistError(f"{name}: unexpected ')'", loc)
+            parens = False
+            i += 1
+            break
+        if token == "(":
+            raise NetlistError(f"{name}: unexpected '(' in {kind.upper()}", loc)
+        if i + 1 < n and fields[i + 1] == "=":
+            if i + 2 >= n:
+                raise NetlistError(f"{name}: {token}= has no value", loc)
+            keywords[token.lower()] = fields[i + 2]
+            i += 3
+            continue
+        if not parens and not values.is_value(token):
+            break
+        if not values.is_value(token):
+            raise NetlistError(f"{name}: unexpected field {token!r} in {kind.upper()}(...)", loc)
+        args.append(values.number(token, loc, f"{name} {kind.upper()}"))
+        i += 1
+    if parens:
+        raise NetlistError(f"{name}: missing ')' after {kind.upper()}(", loc)
+    # PWL options may also follow the closing parenthesis: PWL(...) TD=1n R=0
+    while kind == "pwl" and i + 2 < n + 1 and i + 1 < n and fields[i + 1] == "=":
+        keywords[fields[i].lower()] = fields[i + 2]
+        i += 3
+    return _make_waveform(kind, args, keywords, loc, ctx, name), i
+
+
+def _make_waveform(
+    kind: str, args: list[float], keywords: dict[str, str], loc: SourceLocation, ctx: _Context, name: str
+) -> Waveform:
+    def need(low: int, high: int) -> None:
+        if not low <= len(args) <= high:
+            raise NetlistError(f"{name}: {kind.upper()} takes {low} to {high} values, got {len(args)}", loc)
+
+    if keywords and kind != "pwl":
+        raise NetlistError(f"{name}: unknown parameter {next(iter(keywords))}= in {kind.upper()}", loc)
+    if kind == "pulse":
+        need(2, 7)
+        a = args + [None] * (7 - len(args))
+        if a[6] is not None and a[6] < 0:
+            raise NetlistError(f"{name}: PULSE period is negative", loc)
+        return Pulse(args[0], args[1], a[2] or 0.0, a[3], a[4], a[5], a[6])
+    if kind == "sin":
+        need(2, 6)
+        a = args + [None] * (6 - len(args))
+        return Sin(args[0], args[1], a[2], a[3] or 0.0, a[4] or 0.0, a[5] or 0.0)
+    if kind == "exp":
+        need(2, 6)
+        a = args + [None] * (6 - len(args))
+        return Exp(args[0], args[1], a[2] or 0.0, a[3], a[4], a[5])
+    if kind == "pwl":
+        return _make_pwl(args, keywords, loc, ctx, name)
+    if kind in ("trnoise", "trrandom"):
+        need(1, 9)  # TRNOISE(NA NT NALPHA NAMP RTSAM RTSCAPT RTSEMT), TRRANDOM(TYPE TS TD P1 P2)
+        return Random(kind, name, loc)
+    raise NetlistError(f"{name}: {kind.upper()} sources are not supported", loc)
+
+
+def _make_pwl(
+    args: list[float], keywords: dict[str, str], loc: SourceLocation, ctx: _Context, name: str
+) -> Pwl:
+    values = ctx.values
+    if "file" in keywords:
+        if args:
+            raise NetlistError(f"{name}: PWL with both FILE= and points", loc)
+        target = Path(loc.path).parent / _quoted_name(_unwrap(keywords.pop("file")))
+        text = read_source(target, loc, "PWL file")
+        numbers: list[float] = []
+        for word in re.split(r"[\s,;]+", text.strip()):
+            if not word:
+                continue
+            reading = read_number(word)
+            if reading is None:
+                raise NetlistError(f"{name}: PWL file {target.name}: not a number {word!r}", loc)
+            numbers.append(reading.value)
+        args = numbers
+    if len(args) < 2 or len(args) % 2:
+        raise NetlistError(f"{name}: PWL needs time-value pairs, got {len(args)} values", loc)
+    times = list(args[0::2])
+    levels = list(args[1::2])
+    if any(b < a for a, b in itertools.pairwise(times)):
+        raise NetlistError(f"{name}: PWL times must not decrease", loc)
+    td = values.number(keywords.pop("td"), loc, f"{name} TD") if "td" in keywords else 0.0
+    repeat = values.number(keywords.pop("r"), loc, f"{name} R") if "r" in keywords else None
+    if keywords:
+        raise NetlistError(f"{name}: unknown PWL parameter {next(iter(keywords))}=", loc)
+    if repeat is not None:
+        if ctx.tran is None:
+            raise NetlistError(f"{name}: PWL R= (repeat) needs a .tran to know how far to repeat", loc)
+        if not times[0] <= repeat < times[-1] or repeat not in times:
+            raise NetlistError(
+                f"{name}: PWL R={repeat:g} must be one of the PWL's times before the last", loc
+            )
+        start = times.index(repeat)
+        period = times[-1] - repeat
+        # Each repetition starts again at the value at R (a jump at the end of the last one).
+        seg_t = times[start:]
+        seg_v = levels[start:]
+        shift = period
+        horizon = ctx.tran.tstop - td
+        while times[-1] < horizon:
+            if len(times) + len(seg_t) > MAX_PWL_POINTS:
+                raise NetlistError(f"{name}: PWL R= repeats to more than {MAX_PWL_POINTS} points", loc)
+            times.extend(t + shift for t in seg_t)
+            levels.extend(seg_v)
+            shift += period
+    if td:
+        times = [t + td for t in times]
+        if times[0] > 0:
+            times.insert(0, 0.0)
+            levels.insert(0, levels[0])
+    return Pwl(tuple(times), tuple(levels))
+
+
+_NONLINEAR_KEYWORDS = ("table", "laplace", "freq", "tablea", "chebyshev")
+
+
+def _poly_expression(fields: list[str], letter: str, values: _Values, loc: SourceLocation) -> str:
+    """The SPICE2 polynomial ``POLY(n) controls p0 p1 ...`` of an E/G/F/H line as an expression.
+
+    The controls are n node pairs (E, G) or n voltage sources (F, H); the coefficients follow
+    SPICE's order: p0, the n first-order terms, then every product of two controls
+    (x1², x1·x2, ..., x2², ...), of three, and so on. A single coefficient is the constant p0, as
+    ngspice 39 reads it (measured: ``POLY(1) a 0 2`` gives 2 V; SPICE2 read it as the gain p1).
+    A first-order polynomial is compiled as controlled sources (its constant p0 as a model input);
+    a higher one is a nonlinear expression.
+    """
+    name = fields[0]
+    if len(fields) < 5:
+        raise NetlistError(f"{name}: POLY needs a dimension, controls and coefficients", loc)
+    dims = values.number(fields[4], loc, f"{name} POLY")
+    if dims != int(dims) or not 1 <= dims <= 20:
+        raise NetlistError(f"{name}: POLY({fields[4]}): the dimension must be a whole number 1..20", loc)
+    n = int(dims)
+    per = 2 if letter in "eg" else 1
+    controls = fields[5 : 5 + per * n]
+    coefficients = fields[5 + per * n :]
+    if len(controls) < per * n or not coefficients:
+        raise NetlistError(
+            f"{name}: POLY({n}) needs {per * n} control {'nodes' if per == 2 else 'sources'} "
+            "and at least one coefficient",
+            loc,
+        )
+    if letter in "eg":
+        xs = [f"v({_node(controls[2 * k])},{_node(controls[2 * k + 1])})" for k in range(n)]
+    else:
+        xs = [f"i({controls[k]})" for k in range(n)]
+    coeffs = [values.number(c, loc, f"{name} POLY coefficient") for c in coefficients]
+    terms: list[str] = []
+    order, index = 0, 0
+    while index < len(coeffs):
+        for combo in itertools.combinations_with_replacement(range(n), order):
+            if index == len(coeffs):
+                break
+            if coeffs[index] != 0:
+                terms.append("*".join([f"({coeffs[index]!r})", *(xs[k] for k in combo)]))
+            index += 1
+        order += 1
+    return " + ".join(terms) or "0"
+
+
+def _expression_after(line: Line, keys: tuple[str, ...]) -> tuple[str, str] | None:
+    """The raw ``key=expression`` of a behavioural source (rest of the line)."""
+    match = re.search(r"(?i)\b(" + "|".join(keys) + r")\s*=\s*", line.text)
+    if match is None:
+        return None
+    rest = line.text[match.end() :].strip()
+    if not rest:
+        raise NetlistError(f"{line.text.split()[0]}: {match.group(1)}= has no expression", line.loc)
+    expr = rest
+    if rest[0] in "{'":
+        try:
+            first = split_fields(rest)[0]
+        except ValueError as exc:
+            raise NetlistError(f"{line.text.split()[0]}: {exc} (ngspice refuses it too)", line.loc) from None
+        expr = first
+        tail = rest[len(first) :].strip()
+        if tail:
+            raise NetlistError(f"{line.text.split()[0]}: unexpected {tail!r} after the expression", line.loc)
+    return match.group(1).lower(), _unwrap(expr)
+
+
+def _build_behavioural(line: Line, kind_letter: str, mode: str, expr: str, ctx: _Context) -> list[Element]:
+    """A linear behavioural source as a sum of controlled sources.
+
+    ``mode`` is ``"v"`` (a voltage: series chain of VCVS/CCVS through
+    internal nodes ``name.n1``, ...) or ``"i"`` (a current: parallel
+    VCCS/CCCS). A constant term becomes an independent source (an input of
+    the model, named ``name.dc``).
+    """
+    fields = line.text.split()
+    name = fields[0]
+    loc = line.loc
+    if len(fields) < 3:
+        raise NetlistError(f"{name}: expected 2 nodes", loc)
+    plus, minus = _node(fields[1]), _node(fields[2])
+    try:
+        form = linear_form(expr, ctx.values.params, ctx.values.functions)
+    except NonlinearError:
+        return [_nonlinear_behavioural(name, plus, minus, mode, expr, ctx, loc)]
+    except ExpressionError as exc:
+        raise NetlistError(f"{name}: {exc}", loc) from None
+    terms: list[tuple[Kind, float, tuple[str, str] | None, str | None]] = []
+    for (what, ref), coeff in form.terms:
+        if what == "v":
+            terms.append((Kind.VCVS if mode == "v" else Kind.VCCS, coeff, (_node(ref), GROUND), None))
+        else:
+            terms.append((Kind.CCVS if mode == "v" else Kind.CCCS, coeff, None, ref))
+    constant = form.const
+    if not terms and constant == 0:
+        raise NetlistError(f"{name}: the expression is identically zero", loc)
+    labels = [name] + [f"{name}.t{k}" for k in range(2, len(terms) + 1)]
+    pieces: list[tuple[Kind, str, float, tuple[str, str] | None, str | None, Waveform | None]] = [
+        (kind, label, coeff, cnodes, csource, None)
+        for (kind, coeff, cnodes, csource), label in zip(terms, labels, strict=False)
+    ]
+    if constant != 0:
+        source_kind = Kind.VSOURCE if mode == "v" else Kind.ISOURCE
+        label = name if not pieces else f"{name}.dc"
+        pieces.append((source_kind, label, constant, None, None, None))
+        ctx.warnings.append(
+            Diagnostic(
+                loc,
+                f"{name}: the constant term {constant:g} of its expression is a model input ({label})",
+            )
+        )
+    if mode == "v":  # voltage pieces in series through internal nodes
+        key = name.lower()
+        chain = [plus] + [f"{key}.n{k}" for k in range(1, len(pieces))] + [minus]
+        ends = list(itertools.pairwise(chain))
+    else:  # current pieces in parallel
+        ends = [(plus, minus)] * len(pieces)
+    return [
+        Element(
+            kind,
+            label,
+            nodes,
+            coeff,
+            loc,
+            control_nodes=cnodes,
+            control_source=csource,
+            waveform=wave,
+            expression=expr,
+        )
+        for (kind, label, coeff, cnodes, csource, wave), nodes in zip(pieces, ends, strict=True)
+    ]
+
+
+def _nonlinear_behavioural(
+    name: str, plus: str, minus: str, mode: str, expr: str, ctx: _Context, loc: SourceLocation
+) -> Element:
+    """A behavioural source whose expression is not linear: one element with the folded expression."""
+    from netlistdyn.devices.models import Behaviour, fold
+
+    try:
+        folded = fold(expr, ctx.values.params, ctx.values.functions)
+        Behaviour.from_text(folded)
+    except ExpressionError as exc:
+        raise NetlistError(f"{name}: {exc}", loc) from None
+    kind = Kind.BVOLTAGE if mode == "v" else Kind.BCURRENT
+    return Element(kind, name, (plus, minus), 0.0, loc, expression=folded)
+
+
+def _build_diode(line: Line, ctx: _Context) -> Element:
+    """``Dname anode cathode model [area] [area=] [m=]`` with a ``.model NAME D(...)``."""
+    from netlistdyn.devices.models import DIODE_NEUTRAL, DIODE_PARAMS
+
+    fields = _fields(line)
+    name, loc = fields[0], line.loc
+    if len(fields) < 4:
+        raise NetlistError(f"{name}: expected {name} anode cathode model [area]", loc)
+    nodes = (_node(fields[1]), _node(fields[2]))
+    positional, keywords = _split_keywords(fields, 4, name, loc)
+    mname = fields[3].lower()
+    if mname not in ctx.models:
+        raise NetlistError(f"{name}: no .model {fields[3]}", loc)
+    mtype, mparams, mloc = ctx.models[mname]
+    if mtype != "d":
+        raise NetlistError(f"{name}: model {fields[3]} is a {mtype.upper()} model, not D", loc)
+    values = ctx.values
+    area = 1.0
+    if positional:
+        if len(positional) > 1 or positional[0].lower() == "off":
+            raise NetlistError(f"{name}: unexpected field {positional[-1]!r} (expected an area)", loc)
+        area = values.number(positional[0], loc, f"{name} area")
+    if "area" in keywords:
+        area = values.number(keywords.pop("area"), loc, f"{name} area")
+    if "m" in keywords:
+        area *= values.number(keywords.pop("m"), loc, f"{name} m")
+    if keywords:
+        raise NetlistError(f"{name}: unsupported parameter {next(iter(keywords))}= on a diode", loc)
+    if not area > 0:
+        raise NetlistError(f"{name}: the area must be positive, got {area:g}", loc)
+    if (ctx.temp is not None and ctx.temp != 27.0) or ctx.tnom != 27.0:
+        raise NetlistError(f"{name}: diodes are modelled at 27 °C only (TEMP = TNOM = 27)", loc)
+    given: dict[str, float] = {}
+    for key, text in mparams.items():
+        what = f".model {mname} {key.upper()}"
+        if key in DIODE_PARAMS:
+            given[DIODE_PARAMS[key]] = values.number(text, mloc, what)
+        elif key in DIODE_NEUTRAL:
+            if values.number(text, mloc, what) != DIODE_NEUTRAL[key]:
+                raise NetlistError(f"{what}: only the default {DIODE_NEUTRAL[key]:g} is supported", mloc)
+        else:
+            raise NetlistError(
+                f"{what}: parameter not supported (netlistdyn reads IS N RS CJO VJ M TT FC)", mloc
+            )
+    model = DiodeModel(mname, **given)
+    if not (model.IS > 0 and model.N > 0 and model.RS >= 0 and model.CJO >= 0 and model.TT >= 0):
+        raise NetlistError(f".model {mname}: IS and N must be positive, RS, CJO and TT not negative", mloc)
+    if model.CJO > 0 and not (model.VJ > 0 and 0 < model.M < 1 and 0 <= model.FC < 1):
+        raise NetlistError(f".model {mname}: needs VJ > 0, 0 < M < 1 and 0 <= FC < 1", mloc)
+    return Element(Kind.DIODE, name, nodes, area, loc, diode=model)
+
+
+def _build_element(line: Line, ctx: _Context) -> list[Element]:
+    word = line.text.split(None, 1)[0]
+    letter = word[0].lower()
+    loc = line.loc
+    values = ctx.values
+    name = word
+    if word.lower() in KEYWORDS:
+        fields = _fields(line)
+        if word.lower() in ("force", "torque") and len(fields) == 5 and _is_expr(fields[4]):
+            from netlistdyn.devices.models import mechanical_expression
+
+            if mechanical_expression(fields[4]):
+                # a force of the motion, FORCE name a b {expr}: pushes a (current from b into a)
+                a, b = _node(fields[2]), _node(fields[3])
+                element = _nonlinear_behavioural(
+                    f"{word.upper()} {fields[1]}", b, a, "i", _unwrap(fields[4]), ctx, loc
+                )
+                return [replace(element, name=fields[1], keyword=word.upper())]
+        return [
+            build_mechanical(
+                word.lower(),
+                fields[1:],
+                loc,
+                lambda token, what: values.number(token, loc, what),
+                _node,
+                lambda tokens, what: _parse_source(list(tokens), loc, ctx, what)[:2],
+                ctx.warnings,
+            )
+        ]
+    if letter in "rlc":
+        return _build_passive(line, _fields(line), ctx)
+    if letter in "vi":
+        fields = _fields(line, keep_parens=True)
+        if len(fields) < 3 or "(" in fields[1:3] or ")" in fields[1:3]:
+            raise NetlistError(f"{name}: expected 2 nodes", loc)
+        kind = Kind.VSOURCE if letter == "v" else Kind.ISOURCE
+        nodes = (_node(fields[1]), _node(fields[2]))
+        dc, waveform, z0 = _parse_source(_waveform_parens_only(fields[3:]), loc, ctx, name)
+        source = Element(kind, name, nodes, dc, loc, waveform=waveform)
+        if z0 is None:
+            return [source]
+        if kind is Kind.ISOURCE:
+            return [source, Element(Kind.RESISTOR, f"{name}.z0", nodes, z0, loc)]
+        inner = f"{name.lower()}.port"
+        return [
+            replace(source, nodes=(inner, nodes[1])),
+            Element(Kind.RESISTOR, f"{name}.z0", (nodes[0], inner), z0, loc),
+        ]
+    if letter == "b":
+        found = _expression_after(line, ("v", "i"))
+        if found is None:
+            raise NetlistError(f"{name}: expected V={{expression}} or I={{expression}}", loc)
+        mode, expr = found
+        return _build_behavioural(line, "b", mode, expr, ctx)
+    if letter in "efgh":
+        fields = _fields(line)
+        if len(fields) > 3 and fields[3].lower() == "poly":
+            mode = "v" if letter in "eh" else "i"
+            return _build_behavioural(line, letter, mode, _poly_expression(fields, letter, values, loc), ctx)
+    if letter in "eg":
+        fields = _fields(line)
+        if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
+            raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
+        found = _expression_after(line, ("value", "vol", "cur"))
+        if found is not None:
+            key, expr = found
+            if (letter == "e" and key == "cur") or (letter == "g" and key == "vol"):
+                raise NetlistError(f"{name}: {key}= does not belong to a {letter.upper()} source", loc)
+            return _build_behavioural(line, letter, "v" if letter == "e" else "i", expr, ctx)
+        kind = Kind.VCVS if letter == "e" else Kind.VCCS
+        if len(fields) < 5:
+            raise NetlistError(f"{name}: expected 4 nodes, got {len(fields) - 1}", loc)
+        n = tuple(_node(x) for x in fields[1:5])
+        positional, keywords = _split_keywords(fields, 5, name, loc)
+        if len(positional) != 1 or keywords:
+            extra = positional[1] if len(positional) > 1 else next(iter(keywords), "gain")
+            raise NetlistError(f"{name}: expected one gain, got {extra!r}", loc)
+        gain = values.number(positional[0], loc, name)
+        return [Element(kind, name, n[:2], gain, loc, control_nodes=(n[2], n[3]))]
+    if letter in "fh":
+        fields = _fields(line)
+        kind = Kind.CCCS if letter == "f" else Kind.CCVS
+        if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
+            raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
+        if len(fields) < 4:
+            raise NetlistError(f"{name}: missing controlling voltage source", loc)
+        if len(fields) != 5:
+            raise NetlistError(f"{name}: expected {name} n+ n- Vcontrol gain", loc)
+        gain = values.number(fields[4], loc, name)
+        return [
+            Element(
+                kind, name, (_node(fields[1]), _node(fields[2])), gain, loc, control_source=fields[3].lower()
+            )
+        ]
+    if letter == "k":
+        fields = _fields(line)
+        if len(fields) < 4:
+            raise NetlistError(f"{name}: expected K name L1 L2 k", loc)
+        k = values.number(fields[-1], loc, name)
+        if not 0 < abs(k) < 1:
+            raise NetlistError(
+                f"{name}: coupling coefficient must satisfy 0 < |k| < 1, got {k:g}"
+                + (" (perfect coupling is an ideal transformer; use k < 1)" if abs(k) == 1 else ""),
+                loc,
+            )
+        inductors = [f.lower() for f in fields[1:-1]]
+        # LTspice: "K1 L1 L2 L3 k" couples every pair with k (ngspice 39 takes two inductors).
+        pairs = list(itertools.combinations(inductors, 2))
+        labels = [name] + [f"{name}.{a}.{b}" for a, b in pairs[1:]]
+        return [
+            Element(Kind.COUPLING, label, (), k, loc, coupled=pair)
+            for label, pair in zip(labels, pairs, strict=True)
+        ]
+    if letter == "d":
+        return [_build_diode(line, ctx)]
+    what = NONLINEAR_DEVICES.get(letter)
+    if what:
+        raise NetlistError(
+            f"{name}: {what} is a nonlinear device, not supported (netlistdyn compiles linear netlists only)",
+            loc,
+        )
+    other = OTHER_UNSUPPORTED.get(letter)
+    if other:
+        raise NetlistError(f"{name}: {other} elements are not supported (lumped elements only)", loc)
+    raise NetlistError(f"{name}: unknown element type {name[0]!r}", loc)
+
+
+# --------------------------------------------------------------------------------------------
+# Directives
+
+
+def _parse_tran(line: Line, values: _Values, warnings: list[Diagnostic]) -> TranSpec:
+    spec = _parse_tran_times(line, values, warnings)
+    uic = any(f.lower() == "uic" for f in _fields(line)[1:])
+    return replace(spec, uic=True) if uic else spec
+
+
+def _parse_tran_times(line: Line, values: _Values, warnings: list[Diagnostic]) -> TranSpec:
+    fields = [f for f in _fields(line)[1:] if f.lower() not in ("uic", "startup")]
+    nums = [values.number(f, line.loc, ".tran") for f in fields[:4]]
+    if not nums:
+        raise NetlistError(".tran needs TSTEP TSTOP", line.loc)
+    if len(nums) == 1 or nums[0] == 0:
+        # LTspice: ".tran TSTOP" and ".tran 0 TSTOP ..." (ngspice 39 refuses both).
+        tstop = nums[0] if len(nums) == 1 else nums[1]
+        if tstop <= 0:
+            raise NetlistError(".tran: TSTOP must be positive", line.loc)
+        tstep = tstop / 50
+        warnings.append(
+            Diagnostic(line.loc, f".tran in LTspice form (no TSTEP): TSTEP taken as TSTOP/50 = {tstep:g} s")
+        )
+        rest = nums[2:] if len(nums) > 1 else []
+        return TranSpec(tstep, tstop, rest[0] if rest else 0.0, rest[1] if len(rest) > 1 else None, line.loc)
+    if nums[0] <= 0 or nums[1] <= 0:
+        raise NetlistError(".tran: TSTEP and TSTOP must be positive", line.loc)
+    return TranSpec(
+        nums[0], nums[1], nums[2] if len(nums) > 2 else 0.0, nums[3] if len(nums) > 3 else None, line.loc
+    )
+
+
+def _parse_func(line: Line) -> tuple[str, tuple[str, ...], Expression]:
+    match = re.match(r"(?is)\.func\s+([A-Za-z_][\w]*)\s*\(([^)]*)\)\s*=?\s*(.+)$", line.text)
+    if match is None:
+        raise NetlistError(".func: expected .func name(args) = {expression}", line.loc)
+    formals = tuple(a.strip().lower() for a in match.group(2).split(",") if a.strip())
+    try:
+        body = parse(_unwrap(match.group(3).strip()))
+    except ExpressionError as exc:
+        raise NetlistError(f".func {match.group(1)}: {exc}", line.loc) from None
+    return match.group(1).lower(), formals, body
+
+
+def _parse_model(line: Line) -> tuple[str, str, dict[str, str]]:
+    fields = _fields(line)
+    if len(fields) < 3:
+        raise NetlistError(".model needs a name and a type", line.loc)
+    params: dict[str, str] = {}
+    rest = fields[3:]
+    i = 0
+    while i < len(rest):
+        if i + 2 < len(rest) + 1 and i + 1 < len(rest) and rest[i + 1] == "=":
+            params[rest[i].lower()] = rest[i + 2] if i + 2 < len(rest) else ""
+            i += 3
+        else:
+            params[rest[i].lower()] = "1"
+            i += 1
+    return fields[1].lower(), fields[2].lower(), params
+
+
+def _parse_step(line: Line, values: _Values) -> StepSpec:
+    fields = _fields(line)[1:]
+    words = [f.lower() for f in fields]
+    mode = "lin"
+    if words and words[0] in ("lin", "dec", "oct"):
+        mode = words.pop(0)
+        fields = fields[1:]
+    if not words or words[0] != "param" or len(fields) < 3:
+        raise NetlistError(".step: only '.step [lin|dec|oct] param NAME ...' is supported", line.loc)
+    pname = fields[1].lower()
+    rest = fields[2:]
+    if rest[0].lower() == "list":
+        items = tuple(values.number(f, line.loc, ".step") for f in rest[1:])
+        if not items:
+            raise NetlistError(".step list needs values", line.loc)
+        return StepSpec(pname, items, line.loc)
+    if len(rest) != 3:
+        raise NetlistError(".step param NAME START STOP STEP (or list v1 v2 ...)", line.loc)
+    start, stop, step = (values.number(f, line.loc, ".step") for f in rest)
+    if mode == "lin":
+        if step == 0 or (stop - start) / step < 0:
+            raise NetlistError(".step: the step does not go from START to STOP", line.loc)
+        count = math.floor((stop - start) / step + 1e-9) + 1
+        if count > 100_000:
+            raise NetlistError(f".step: {count} values (more than 100000)", line.loc)
+        return StepSpec(pname, tuple(start + k * step for k in range(count)), line.loc)
+    if start <= 0 or stop <= 0 or step <= 0:
+        raise NetlistError(f".step {mode}: START, STOP and points must be positive", line.loc)
+    per = int(step)
+    base = 10.0 if mode == "dec" else 2.0
+    count = math.floor(math.log(stop / start, base) * per + 1e-9) + 1
+    if count > 100_000:
+        raise NetlistError(f".step: {count} values (more than 100000)", line.loc)
+    return StepSpec(pname, tuple(start * base ** (k / per) for k in range(count)), line.loc)
+
+
+def _parse_ic(line: Line, values: _Values) -> list[InitialCondition]:
+    fields = _fields(line)[1:]
+    out: list[InitialCondition] = []
+    i = 0
+    while i < len(fields):
+        if fields[i].lower() == "v" and i + 3 < len(fields) and fields[i + 2] == "=":
+            node = _node(fields[i + 1])
+            out.append(InitialCondition(node, values.number(fields[i + 3], line.loc, ".ic"), line.loc))
+            i += 4
+            continue
+        raise NetlistError(f".ic: expected v(node)=value, got {fields[i]!r}", line.loc)
+    return out
+
+
+def _resolve_conditionals(
+    lines: list[Line], params: Mapping[str, float], functions: _Functions
+) -> list[Line]:
+    """Keep the lines of the taken branches of ``.if/.elseif/.else/.endif``."""
+    if not any(line.text[:3].lower() == ".if" for line in lines):
+        return lines
+    out: list[Line] = []
+    # stack entries: [parent_active, this_branch_active, some_branch_taken, loc]
+    stack: list[list[object]] = []
+    active = True
+    for line in lines:
+        words = line.text.split(None, 1)
+        word = words[0].lower()
+        if word in (".if", ".elseif"):
+            cond_text = words[1].strip() if len(words) > 1 else ""
+            if word == ".if":
+                stack.append([active, False, False, line.loc])
+            elif not stack:
+                raise NetlistError(".elseif without .if", line.loc)
+            frame = stack[-1]
+            parent = bool(frame[0])
+            if frame[2] or not parent:
+                frame[1] = False
+            else:
+                try:
+                    taken = bool(
+                        evaluate(
+                            _unwrap(cond_text.strip("()").strip()) if cond_text else "", params, functions
+                        )
+                    )
+                except ExpressionError as exc:
+                    raise NetlistError(f"{word}: {exc}", line.loc) from None
+                frame[1] = taken
+                frame[2] = taken
+            active = bool(frame[1])
+            continue
+        if word == ".else":
+            if not stack:
+                raise NetlistError(".else without .if", line.loc)
+            frame = stack[-1]
+            frame[1] = bool(frame[0]) and not frame[2]
+            frame[2] = True
+            active = bool(frame[1])
+            continue
+        if word == ".endif":
+            if not stack:
+                raise NetlistError(".endif without .if", line.loc)
+            frame = stack.pop()
+            active = bool(frame[0])
+            continue
+        if active:
+            out.append(line)
+    if stack:
+        raise NetlistError(".if without .endif", stack[-1][3])  # type: ignore[arg-type]
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Subcircuits
+
+
+@dataclass
+class Subcircuit:
+    """A ``.subckt name ports... [params: p=v ...]`` definition with its nested definitions."""
+
+    name: str
+    ports: tuple[str, ...]
+    defaults: tuple[_Definition, ...]
+    body: list[Line]
+    definitions: dict[str, Subcircuit]
+    loc: SourceLocation
+    parent: Subcircuit | None = None
+    count: int | None = field(default=None, repr=False)
+
+
+def _subckt_header(line: Line) -> tuple[str, tuple[str, ...], tuple[_Definition, ...]]:
+    fields = _fields(line)
+    if len(fields) < 2:
+        raise NetlistError(".subckt needs a name", line.loc)
+    name = fields[1]
+    ports: list[str] = []
+    i = 2
+    while (
+        i < len(fields)
+        and fields[i].lower() != "params:"
+        and not (i + 1 < len(fields) and fields[i + 1] == "=")
+    ):
+        ports.append(_node(fields[i]))
+        i += 1
+    defaults: tuple[_Definition, ...] = ()
+    if i < len(fields):
+        match = re.search(r"(?i)\bparams:", line.text)
+        # "params:" list, or the HSPICE form: from the first "name=" after the ports
+        tail = line.text[match.end() :] if match is not None else _tail_from(line, fields[i])
+        defaults = tuple(
+            _Definition(n, e, line.loc) for n, e in param_assignments(tail, line.loc, f".subckt {name}")
+        )
+    return name, tuple(ports), defaults
+
+
+def _split_subcircuits(lines: list[Line]) -> tuple[list[Line], dict[str, Subcircuit]]:
+    """Separate ``.subckt ... .ends`` blocks (nested ones scoped to their parent), iteratively."""
+    top: list[Line] = []
+    definitions: dict[str, Subcircuit] = {}
+    stack: list[Subcircuit] = []
+    for line in lines:
+        word = line.text.split(None, 1)[0].lower()
+        if word == ".subckt":
+            name, ports, defaults = _subckt_header(line)
+            parent = stack[-1] if stack else None
+            sub = Subcircuit(name, ports, defaults, [], {}, line.loc, parent)
+            scope = parent.definitions if parent else definitions
+            key = name.lower()
+            if key in scope:
+                raise NetlistError(f".subckt {name}: defined twice (first at {scope[key].loc})", line.loc)
+            scope[key] = sub
+            stack.append(sub)
+            continue
+        if word == ".ends":
+            if not stack:
+                raise NetlistError(".ends without .subckt", line.loc)
+            stack.pop()
+            continue
+        if stack:
+            if word in (".tran", ".global", ".step", ".ic", ".end"):
+                raise NetlistError(f"{word} inside .subckt {stack[-1].name} is not supported", line.loc)
+            stack[-1].body.append(line)
+        else:
+            top.append(line)
+    if stack:
+        raise NetlistError(f".subckt {stack[-1].name}: no matching .ends", stack[-1].loc)
+    return top, definitions
+
+
+def _tail_from(line: Line, name: str) -> str:
+    """The text of ``line`` from the first ``name=`` on (a parameter list)."""
+    found = re.search(r"(?i)(?<![\w.])" + re.escape(name) + r"\s*=", line.text)
+    if found is None:
+        raise NetlistError(f"{line.text.split()[0]}: cannot read the parameter list at {name!r}", line.loc)
+    return line.text[found.start() :]
+
+
+def _instance_target(line: Line, fields: list[str]) -> tuple[list[str], str, str]:
+    """Nodes, subcircuit name and the ``p=v`` text of an ``X`` line."""
+    positional: list[str] = []
+    i = 1
+    while (
+        i < len(fields)
+        and fields[i].lower() != "params:"
+        and not (i + 1 < len(fields) and fields[i + 1] == "=")
+    ):
+        positional.append(fields[i])
+        i += 1
+    if not positional:
+        raise NetlistError(f"{fields[0]}: expected X name nodes... subcircuit", line.loc)
+    tail = ""
+    if i < len(fields):
+        match = re.search(r"(?i)\bparams:", line.text)
+        tail = line.text[match.end() :] if match is not None else _tail_from(line, fields[i])
+    return positional[:-1], positional[-1], tail
+
+
+def _lookup(
+    scope_chain: Subcircuit | None, definitions: dict[str, Subcircuit], key: str
+) -> Subcircuit | None:
+    sub = scope_chain
+    while sub is not None:
+        if key in sub.definitions:
+            return sub.definitions[key]
+        sub = sub.parent
+    return definitions.get(key)
+
+
+def _count_elements(lines: list[Line], definitions: dict[str, Subcircuit], limit: int) -> int:
+    """Number of element lines after full expansion, computed without expanding (iteratively)."""
+
+    def instances(body: list[Line], owner: Subcircuit | None) -> tuple[int, list[tuple[Subcircuit, Line]]]:
+        leaves = 0
+        children: list[tuple[Subcircuit, Line]] = []
+        for line in body:
+            word = line.text.split(None, 1)[0].lower()
+            if word.startswith("."):
+                continue
+            if word[0] == "x" and word not in KEYWORDS:
+                fields = _fields(line)
+                _, sub_name, _ = _instance_target(line, fields)
+                sub = _lookup(owner, definitions, sub_name.lower())
+                if sub is None:
+                    raise NetlistError(f"{fields[0]}: unknown subcircuit {sub_name!r}", line.loc)
+                children.append((sub, line))
+            else:
+                leaves += 1
+        return leaves, children
+
+    total, roots = instances(lines, None)
+    for root, root_line in roots:
+        if root.count is None:
+            # iterative post-order over the definition graph
+            stack: list[tuple[Subcircuit, Line, int, list[tuple[Subcircuit, Line]], int]] = []
+            leaves, children = instances(root.body, root)
+            stack.append((root, root_line, leaves, children, 0))
+            on_path = {id(root)}
+            while stack:
+                sub, via, leaves, children, k = stack[-1]
+                if k < len(children):
+                    stack[-1] = (sub, via, leaves, children, k + 1)
+                    child, child_line = children[k]
+                    if child.count is not None:
+                        continue
+                    if id(child) in on_path:
+                        raise NetlistError(
+                            f"{child_line.text.split()[0]}: subcircuit {child.name} instantiates itself",
+                            child_line.loc,
+                        )
+                    if len(stack) >= MAX_SUBCIRCUIT_DEPTH:
+                        where = child_line.text.split()[0]
+                        raise NetlistError(
+                            f"{where}: subcircuits nested over {MAX_SUBCIRCUIT_DEPTH} levels deep",
+                            child_line.loc,
+                        )
+                    c_leaves, c_children = instances(child.body, child)
+                    stack.append((child, child_line, c_leaves, c_children, 0))
+                    on_path.add(id(child))
+                    continue
+                count = leaves + sum(c.count or 0 for c, _ in children)
+                sub.count = min(count, limit + 1)
+                on_path.discard(id(sub))
+                stack.pop()
+        total += root.count or 0
+        if total > limit:
+            raise NetlistError(
+                f"{root_line.text.split()[0]}: the subcircuits expand to more than {limit} elements "
+                f"(set {MAX_ELEMENTS_VARIABLE} to raise the limit)",
+                root_line.loc,
+            )
+    return total
+
+
+@dataclass
+class _Build:
+    """State of one netlist's element building."""
+
+    ctx: _Context
+    definitions: dict[str, Subcircuit]
+    globals_: frozenset[str]
+    elements: list[Element] = field(default_factory=list)
+
+
+def _expand_body(
+    build: _Build,
+    body: list[Line],
+    values: _Values,
+    owner: Subcircuit | None,
+    prefix: str,
+    port_map: dict[str, str],
+    depth: int,
+) -> None:
+    ctx = replace(build.ctx, values=values)
+    for line in body:
+        word = line.text.split(None, 1)[0].lower()
+        if word.startswith("."):
+            continue
+        if word[0] == "x" and word not in KEYWORDS:
+            _expand_instance(build, line, values, owner, prefix, port_map, depth)
+            continue
+        built = _build_element(line, ctx)
+        if prefix:
+            built = [_rename(e, prefix, port_map, build.globals_) for e in built]
+        build.elements.extend(built)
+
+
+def _expand_instance(
+    build: _Build,
+    line: Line,
+    values: _Values,
+    owner: Subcircuit | None,
+    prefix: str,
+    port_map: dict[str, str],
+    depth: int,
+) -> None:
+    fields = _fields(line)
+    name = fields[0]
+    nodes, sub_name, tail = _instance_target(line, fields)
+    sub = _lookup(owner, build.definitions, sub_name.lower())
+    if sub is None:
+        raise NetlistError(f"{name}: unknown subcircuit {sub_name!r}", line.loc)
+    if depth >= MAX_SUBCIRCUIT_DEPTH:
+        raise NetlistError(f"{name}: subcircuits nested deeper than {MAX_SUBCIRCUIT_DEPTH} levels", line.loc)
+    if len(nodes) != len(sub.ports):
+        raise NetlistError(
+            f"{name}: subcircuit {sub.name} has {len(sub.ports)} ports, got {len(nodes)} nodes", line.loc
+        )
+    # Instance parameters (measured on ngspice 39): a value given on the X line replaces the
+    # subcircuit's default *and* a body .param of that name; its expression may use the other
+    # parameters of the instance (par3='par1+par2'), and otherwise the caller's scope. An
+    # expression naming its own parameter (r={r*2}) means the caller's value.
+    overrides: dict[str, float] = {}
+    given: list[_Definition] = []
+    if tail:
+        known = {d.name.lower() for d in sub.defaults}
+        for pname, expr in param_assignments(tail, line.loc, name):
+            key = pname.lower()
+            if key not in known:
+                raise NetlistError(f"{name}: subcircuit {sub.name} has no parameter {pname}", line.loc)
+            text = _value_expression(expr)
+            try:
+                parsed = parse(text)
+                if key in parsed.names:
+                    overrides[key] = evaluate(parsed, values.params, values.functions)
+                else:
+                    given.append(_Definition(pname, expr, line.loc))
+            except ExpressionError as exc:
+                raise NetlistError(f"{name} {pname}: {exc}", line.loc) from None
+    replaced = set(overrides) | {d.name.lower() for d in given}
+    local_defs = (
+        [d for d in sub.defaults if d.name.lower() not in replaced]
+        + [
+            _Definition(n, e, b.loc)
+            for b in sub.body
+            if b.text.split(None, 1)[0].lower() == ".param"
+            for n, e in _param_line(b)
+            if n.lower() not in replaced
+        ]
+        + given
+    )
+    scope: Mapping[str, float] = values.params
+    if local_defs or overrides:
+        base: Mapping[str, float] = ChainMap(overrides, values.params) if overrides else values.params
+        local = evaluate_definitions(local_defs, base, values.functions, None)
+        local.update(overrides)
+        scope = ChainMap(local, values.params)  # type: ignore[arg-type]
+    outer = [_map_node(_node(n), prefix, port_map, build.globals_) for n in nodes]
+    inner_prefix = f"{prefix}.{name}" if prefix else name
+    inner_ports = dict(zip(sub.ports, outer, strict=True))
+    _expand_body(build, sub.body, values.scoped(scope), sub, inner_prefix, inner_ports, depth + 1)
+
+
+def _map_node(n: str, prefix: str, port_map: dict[str, str], globals_: frozenset[str]) -> str:
+    if not prefix or n == GROUND or n in globals_:
+        return n
+    return port_map.get(n, f"{prefix.lower()}.{n}")
+
+
+def _rename(element: Element, prefix: str, port_map: dict[str, str], globals_: frozenset[str]) -> Element:
+    """Place an element of a subcircuit body into its instance's scope."""
+
+    def node(n: str) -> str:
+        return _map_node(n, prefix, port_map, globals_)
+
+    low = prefix.lower()
+
+    def ref(key: str | None) -> str | None:
+        return None if key is None else f"{low}.{key}"
+
+    expression = element.expression
+    if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT, *STORAGE_KINDS) and expression is not None:
+        from netlistdyn.devices.models import DISPLACEMENT, fold
+
+        def scoped(kind: str, n: str) -> str:
+            if kind == "v":
+                return node(n)
+            if n.startswith(DISPLACEMENT):
+                return DISPLACEMENT + node(n[len(DISPLACEMENT) :])
+            return f"{low}.{n}"
+
+        expression = fold(expression, {}, {}, scoped)
+    return replace(
+        element,
+        expression=expression,
+        name=f"{prefix}.{element.name}",
+        nodes=tuple(node(n) for n in element.nodes),
+        control_nodes=None
+        if element.control_nodes is None
+        else (node(element.control_nodes[0]), node(element.control_nodes[1])),
+        control_source=ref(element.control_source),
+        coupled=None
+        if element.coupled is None
+        else (f"{low}.{element.coupled[0]}", f"{low}.{element.coupled[1]}"),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Entry points
+
+
+def parse_text(
+    text: str,
+    path: str = "<string>",
+    overrides: Mapping[str, float] | None = None,
+    max_elements: int | None = None,
+) -> Netlist:
+    """Parse netlist text.
+
+    Parameters
+    ----------
+    text : str
+        The netlist; its first line is the title.
+    path : str
+        Name used in messages and for resolving ``.include``.
+    overrides : Mapping[str, float], optional
+        ``.param`` values to replace (``--param NAME=VALUE``).
+    max_elements : int, optional
+        Refuse netlists whose subcircuits expand to more elements than this
+        (default: ``$NETLISTDYN_MAX_ELEMENTS``, else :data:`MAX_ELEMENTS`).
+
+    Returns
+    -------
+    Netlist
+
+    Raises
+    ------
+    NetlistError
+        With the location of the first problem.
+    """
+    if max_elements is None:
+        max_elements = _limit_from_environment()
+    warnings: list[Diagnostic] = []
+    title, lines = read_lines(Path(path), text, warnings)
+    functions: _Functions = {}
+    for line in lines:
+        if line.text.split(None, 1)[0].lower() == ".func":
+            fname, formals, body = _parse_func(line)
+            functions[fname] = (formals, body)
+    if any(line.text[:3].lower() == ".if" for line in lines):
+        outside = [
+            _Definition(n, e, line.loc)
+            for line in _outside_conditionals(lines)
+            if line.text.split(None, 1)[0].lower() == ".param"
+            for n, e in _param_line(line)
+        ]
+        early = evaluate_definitions(
+            outside, {}, functions, None, {k.lower(): v for k, v in (overrides or {}).items()}
+        )
+        lines = _resolve_conditionals(lines, early, functions)
+    top, definitions = _split_subcircuits(lines)
+    definitions_list = [
+        _Definition(n, e, line.loc)
+        for line in top
+        if line.text.split(None, 1)[0].lower() == ".param"
+        for n, e in _param_line(line)
+    ]
+    lowered = {k.lower(): v for k, v in (overrides or {}).items()}
+    missing = sorted(set(lowered) - {d.name.lower() for d in definitions_list})
+    if missing:
+        raise UsageError(f"--param {missing[0]}: the netlist defines no .param {missing[0]}")
+    params = evaluate_definitions(definitions_list, {}, functions, warnings, lowered)
+    values = _Values(params, functions, warnings)
+    models: dict[str, tuple[str, dict[str, str], SourceLocation]] = {}
+    globals_: set[str] = set()
+    tran: TranSpec | None = None
+    temp: float | None = None
+    tnom = 27.0
+    steps: list[StepSpec] = []
+    ics: list[InitialCondition] = []
+    skipping_control = False
+    body: list[Line] = []
+    all_model_lines = [line for line in lines if line.text.split(None, 1)[0].lower() == ".model"]
+    for line in all_model_lines:
+        mname, mtype, mparams = _parse_model(line)
+        models[mname] = (mtype, mparams, line.loc)
+    for line in top:
+        word = line.text.split(None, 1)[0].lower()
+        if skipping_control:
+            skipping_control = word != ".endc"
+            continue
+        if not word.startswith("."):
+            body.append(line)
+            continue
+        if word in (".param", ".func", ".model"):
+            continue
+        if word == ".control":
+            skipping_control = True
+            warnings.append(Diagnostic(line.loc, ".control block ignored"))
+        elif word == ".tran":
+            tran = _parse_tran(line, values, warnings)
+        elif word == ".global":
+            globals_.update(_node(n) for n in _fields(line)[1:])
+        elif word == ".temp":
+            got = _fields(line)[1:]
+            if len(got) != 1:
+                raise NetlistError(".temp takes one temperature", line.loc)
+            temp = values.number(got[0], line.loc, ".temp")
+        elif word == ".ic":
+            ics.extend(_parse_ic(line, values))
+        elif word == ".step":
+            steps.append(_parse_step(line, values))
+        elif word == ".backanno":
+            warnings.append(
+                Diagnostic(line.loc, ".backanno ignored (LTspice back-annotation; no effect on the model)")
+            )
+        elif word in (".options", ".option", ".opt", ".opti"):
+            opts = {f.lower() for f in _fields(line)[1:]}
+            if opts & {"temp", "tnom"}:
+                warnings.append(
+                    Diagnostic(line.loc, f"{word} temp/tnom: used only with temperature coefficients")
+                )
+                temp, tnom = _options_temperature(line, values, temp, tnom)
+            else:
+                warnings.append(Diagnostic(line.loc, f"{word} ignored (it does not affect the model)"))
+        elif word in IGNORED_DIRECTIVES:
+            warnings.append(Diagnostic(line.loc, f"{word} ignored (it does not affect the model)"))
+        elif word == ".global_param":
+            # Xyce's global parameters: ngspice 39 skips the line, so its names stay undefined
+            # (measured: a value {bar} after ".global_param bar=1" is "Undefined parameter").
+            warnings.append(
+                Diagnostic(line.loc, ".global_param ignored, as ngspice does: it defines nothing")
+            )
+        else:
+            raise NetlistError(f"unsupported directive {word}", line.loc)
+    _count_elements(body, definitions, max_elements)
+    ctx = _Context(values, warnings, models, temp, tran, tnom)
+    build = _Build(ctx, definitions, frozenset(globals_))
+    _expand_body(build, body, values, None, "", {}, 0)
+    elements = build.elements
+    seen: dict[str, SourceLocation] = {}
+    for element in elements:
+        if element.key in seen:
+            raise NetlistError(
+                f"{element.name}: duplicate element name (first defined at {seen[element.key]})", element.loc
+            )
+        seen[element.key] = element.loc
+    if not elements:
+        raise NetlistError("the netlist has no elements", SourceLocation(path, 1))
+    elements = resolve_rods(elements)
+    return Netlist(title, path, tuple(elements), params, tran, tuple(warnings), tuple(ics), tuple(steps))
+
+
+def _options_temperature(
+    line: Line, values: _Values, temp: float | None, tnom: float
+) -> tuple[float | None, float]:
+    """``temp=`` and ``tnom=`` of an ``.options`` line (°C)."""
+    fields = _fields(line)[1:]
+    for i, f in enumerate(fields):
+        low = f.lower()
+        if low in ("temp", "tnom") and i + 2 < len(fields) and fields[i + 1] == "=":
+            value = values.number(fields[i + 2], line.loc, low)
+            if low == "temp":
+                temp = value
+            else:
+                tnom = value
+    return temp, tnom
+
+
+def _outside_conditionals(lines: list[Line]) -> list[Line]:
+    out: list[Line] = []
+    depth = 0
+    for line in lines:
+        word = line.text.split(None, 1)[0].lower()
+        if word == ".if":
+            depth += 1
+        elif word == ".endif":
+            depth -= 1
+        elif depth == 0:
+            out.append(line)
+    return out
+
+
+def _limit_from_environment() -> int:
+    raw = os.environ.get(MAX_ELEMENTS_VARIABLE)
+    if raw is None or not raw.strip():
+        return MAX_ELEMENTS
+    if not raw.strip().isdigit():
+        raise UsageError(f"{MAX_ELEMENTS_VARIABLE}={raw!r}: expected a whole number")
+    return int(raw.strip())
+
+
+def parse_file(
+    path: str | Path, overrides: Mapping[str, float] | None = None, max_elements: int | None = None
+) -> Netlist:
+    """Read and parse a netlist file (see :func:`parse_text`)."""
+    text = read_source(Path(path), SourceLocation(str(path), 0))
+    return parse_text(text, str(path), overrides, max_elements)
+
+
+__all__ = [
+    "MAX_ELEMENTS",
+    "Line",
+    "Subcircuit",
+    "decode",
+    "evaluate_params",
+    "parse_file",
+    "parse_text",
+    "read_lines",
+    "read_source",
+    "split_fields",
+    "tokenize",
+]

@@ -1,0 +1,1 @@
+"""Time responses: input signals, exact and rational stepping, transients."""

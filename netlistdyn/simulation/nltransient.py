@@ -1,0 +1,298 @@
+"""Transient of a nonlinear netlist: x' = f(x, u, t) with charges and currents as states.
+
+The states are those of the linear compiler — capacitor charges q(C),
+inductor currents i(L) — plus the junction charge q(D) of each diode with
+capacitance. ``f`` is evaluated by solving the *resistive* network at the
+given states (:class:`netlistdyn.formulation.nonlinear.NonlinearCircuit` in ``state``
+mode: a capacitor is a voltage source q/C, an inductor a current source, a
+diode junction a voltage source at the voltage whose charge is q(D)); then
+
+- q(C)' = the capacitor's current, i(L)' = L⁻¹ v(L) (couplings included;
+  v(L)/L(i) for an ``L={expr}`` inductor), q(D)' = the junction's capacitive
+  current.
+
+The Jacobian ∂f/∂x follows from the same factorisation by implicit
+differentiation (exact, no finite differences); it is the linearised A at
+that point. Integration is scipy's Radau (implicit, L-stable, error
+controlled), restarted at every source breakpoint. Capacitor loops and
+inductor cutsets (excess elements) are refused: their states are not
+independent.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time as _time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.integrate import solve_ivp
+
+from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
+from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.circuit.sources import SourceValues, breakpoints, resolved_waveforms
+from netlistdyn.formulation.nlsystem import NonlinearSystem
+from netlistdyn.formulation.nonlinear import NonlinearCircuit
+from netlistdyn.simulation.integrators import SimResult
+from netlistdyn.simulation.transient import single_thread
+
+
+@dataclass(frozen=True)
+class NonlinearRun:
+    """A nonlinear transient.
+
+    Attributes
+    ----------
+    time : ndarray
+        Output times (s).
+    outputs : ndarray
+        ``(len(time), len(names))``.
+    names : tuple of str
+        Output names.
+    states : ndarray
+        ``(len(time), nstates)`` state trajectory.
+    state_names : tuple of str
+    stats : dict
+        Right-hand-side and Jacobian evaluations, Newton iterations, steps.
+    seconds : float
+        Wall time (s).
+    """
+
+    time: NDArray[np.float64]
+    outputs: NDArray[np.float64]
+    names: tuple[str, ...]
+    states: NDArray[np.float64]
+    state_names: tuple[str, ...]
+    stats: dict[str, int]
+    seconds: float
+
+
+#: Methods (scipy.integrate.solve_ivp) offered for the nonlinear transient; the first is the default.
+#: DOP853 (explicit, order 8) only on request: for smooth, non-stiff mechanics at tight tolerances.
+NONLINEAR_METHODS = ("BDF", "Radau", "DOP853")
+#: Relative tolerance of netlistdyn's side in ``validate`` (errors measured: below 2e-5 of peak).
+NONLINEAR_VALIDATE_RTOL = 1e-7
+#: Tightest relative tolerance used (a tighter request is raised to it, and the setting says so).
+MIN_RTOL = 1e-9
+
+
+def simulate_nonlinear(
+    netlist: Netlist,
+    outputs: Sequence[str],
+    times: NDArray[np.float64],
+    method: str = "auto",
+    rtol: float = 1e-8,
+    x0: NDArray[np.float64] | None = None,
+    progress: Callable[[float], None] | None = None,
+    x0_names: Sequence[str] = (),
+    u0: NDArray[np.float64] | None = None,
+) -> tuple[SimResult, str]:
+    """:func:`run` with the interface of ``simulate``'s pipeline.
+
+    (That interface is :func:`~netlistdyn.simulation.integrators.run`'s.)
+
+    Without ``x0`` the run starts where SPICE starts a transient (:func:`nonlinear_start`; ``u0``
+    are the sources at t = 0). Returns the result and where it started.
+
+    Raises
+    ------
+    UsageError
+        A method other than ``auto``, ``BDF``, ``Radau`` or ``DOP853``, or an initial state on a
+        state the nonlinear circuit does not have.
+    """
+    if method == "auto":
+        method = NONLINEAR_METHODS[0]
+    if method not in NONLINEAR_METHODS:
+        raise UsageError(f"--method {method}: a nonlinear netlist is integrated with BDF, Radau or DOP853")
+    if x0 is not None:
+        start, how = initial_state(netlist, x0, x0_names), "the given initial state"
+    else:
+        span = (float(times[-1]) / max(times.size - 1, 1), float(times[-1]))
+        u_start = u0 if u0 is not None else SourceValues(resolved_waveforms(netlist, span))(0.0)
+        start, _, how = nonlinear_start(netlist, u_start)
+    used = max(rtol, MIN_RTOL)
+    result = run(netlist, outputs, times, used, start, progress, method)
+    note = f"nonlinear transient; {result.stats['steps']} steps"
+    return (
+        SimResult(
+            result.time,
+            result.outputs,
+            method,
+            f"rtol={used:g}" + (f", raised from {rtol:g}" if used != rtol else ""),
+            result.seconds,
+            "ok",
+            note,
+            {k: float(v) for k, v in result.stats.items()},
+        ),
+        how,
+    )
+
+
+def nonlinear_start(
+    netlist: Netlist, u0: NDArray[np.float64]
+) -> tuple[NDArray[np.float64] | None, bool, str]:
+    """Where SPICE starts the transient of a nonlinear netlist: (state or None for rest, uic, description).
+
+    With ``.tran ... UIC``, and for a mechanism whose forces read displacements (released from
+    where it is drawn), the start is rest: zero charges, currents and displacements (IC= values
+    are not used). Otherwise it is the DC operating point with the sources at their t = 0 values,
+    as ngspice's transient starts (rest when that point is zero).
+    """
+    from netlistdyn.simulation.initial import uses_uic
+
+    circuit = NonlinearCircuit(netlist)
+    if uses_uic(netlist):
+        return None, True, "rest (UIC: zero charges and currents)"
+    if circuit.disp_index:
+        return None, True, "rest at the drawn position (a mechanism with forces of x(n))"
+    point = circuit.operating_point(np.asarray(u0, dtype=float))
+    x = circuit.states_at(point)
+    if not np.any(x) and not np.any(u0):
+        return None, True, "rest (the operating point is zero)"
+    return x, False, f"the DC operating point ({point.method}, {point.iterations} Newton iterations)"
+
+
+def initial_state(
+    netlist: Netlist, x0: NDArray[np.float64] | None, names: Sequence[str]
+) -> NDArray[np.float64] | None:
+    """The nonlinear circuit's initial state from ``--ic`` values given on the linearised model's states.
+
+    ``--ic`` values are absolute (as for a linear netlist, whose zero state is all charges and
+    currents zero). A displacement is ``x(n)``, as in the linearised model; charges, currents and
+    momenta keep their names. A diode's junction charge cannot be set.
+
+    Raises
+    ------
+    UsageError
+        A non-zero value on a state the nonlinear circuit does not have.
+    """
+    if x0 is None or not np.any(np.asarray(x0) != 0):
+        return None
+    circuit = NonlinearCircuit(netlist)
+    targets = {name: k for k, name in enumerate(circuit.state_names)}
+    diodes = {f"q({d.element.name})" for d in circuit.charged_diodes}
+    out = np.zeros(len(targets))
+    for name, value in zip(names, np.asarray(x0, dtype=float), strict=True):
+        if value == 0:
+            continue
+        if name in diodes or name not in targets:
+            raise UsageError(f"--ic {name}: not a state the nonlinear transient can start from")
+        out[targets[name]] = value
+    return out
+
+
+def run(
+    netlist: Netlist,
+    outputs: Sequence[str],
+    times: NDArray[np.float64],
+    rtol: float = 1e-8,
+    x0: NDArray[np.float64] | None = None,
+    progress: Callable[[float], None] | None = None,
+    method: str = "BDF",
+    span: tuple[float, float] | None = None,
+) -> NonlinearRun:
+    """Integrate the nonlinear netlist from ``x0`` (default: zero charges and currents).
+
+    Parameters
+    ----------
+    netlist : Netlist
+    outputs : sequence of str
+        ``v(n)``, ``v(a,b)``, ``i(X)``.
+    times : ndarray
+        Sorted output times (s), from 0.
+    rtol : float
+        The integrator's relative tolerance; the absolute tolerance of each state is
+        ``rtol`` times its scale (C·V for a charge, the source scale over the
+        smallest resistance... see the code), so small states are still
+        followed to ``rtol``.
+    x0 : ndarray, optional
+        Initial state.
+    progress : callable, optional
+        Called with the fraction done.
+    method : str
+        ``BDF`` or ``Radau`` (scipy), both implicit with error control.
+    span : tuple of float, optional
+        (TSTEP, TSTOP) for the waveforms' SPICE defaults (s); default: the spacing of a uniform
+        ``times`` and its end.
+    """
+    start = _time.perf_counter()
+    times = np.asarray(times, dtype=float)
+    if span is None:
+        span = (float(times[-1]) / max(times.size - 1, 1), float(times[-1]))
+    system = NonlinearSystem(netlist, span)
+    tstop = float(times[-1])
+    x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float)
+    atol = _atol(system, times, rtol)
+    edges = np.unique(np.r_[0.0, breakpoints(system.waveforms, tstop), tstop])
+    states = np.zeros((times.size, system.nstates))
+    steps = 0
+    with single_thread():  # BLAS threads only slow the small dense solves down
+        for a, b in itertools.pairwise(edges):
+            inside = (times >= a) & (times <= b)
+            if system.nstates == 0:
+                states[inside] = 0.0
+                continue
+            implicit = method in ("BDF", "Radau", "LSODA")
+            sol = solve_ivp(
+                system.f,
+                (a, b),
+                x,
+                method=method,
+                rtol=rtol,
+                atol=atol,
+                dense_output=True,
+                **({"jac": system.jacobian} if implicit else {}),
+                first_step=min((b - a) * 1e-6, tstop * 1e-9) or None,
+            )
+            if sol.status != 0:
+                raise NetlistError(
+                    f"nonlinear transient failed at t = {sol.t[-1]:.6g} s: {sol.message}",
+                    SourceLocation(netlist.path, 0),
+                )
+            steps += int(sol.t.size - 1)
+            if inside.any():
+                states[inside] = sol.sol(times[inside]).T
+            x = sol.y[:, -1]
+            if progress is not None:
+                progress(b / tstop)
+    values = np.empty((times.size, len(outputs)))
+    for k, t in enumerate(times):
+        u = system.inputs(float(t))
+        z = system.solve(states[k], float(t))
+        values[k] = system.outputs(z, outputs, u)
+    stats = dict(system.stats)
+    stats["steps"] = steps
+    return NonlinearRun(
+        times,
+        values,
+        tuple(outputs),
+        states,
+        tuple(system.circuit.state_names),
+        stats,
+        _time.perf_counter() - start,
+    )
+
+
+def _atol(system: NonlinearSystem, times: NDArray[np.float64], rtol: float) -> NDArray[np.float64]:
+    """Absolute tolerance per state: rtol × (capacitance × voltage scale, or current scale)."""
+    c = system.circuit
+    sample = np.linspace(0.0, float(times[-1]), 257)
+    u = np.array([system.inputs(float(t)) for t in sample]) if c.sources else np.zeros((1, 0))
+    volts = [abs(u[:, j]).max() for j, e in enumerate(c.sources) if e.kind is Kind.VSOURCE]
+    amps = [abs(u[:, j]).max() for j, e in enumerate(c.sources) if e.kind is Kind.ISOURCE]
+    # without voltage sources (mechanics, current-driven circuits) the across variable's scale is 1
+    # (1 V, 1 m/s, 1 rad/s); displacements and angles are on the scale of 1 m or 1 rad
+    vscale = max([*volts, 0.001]) if volts else 1.0
+    resistors = [abs(e.value) for e in system.netlist.elements if e.kind is Kind.RESISTOR]
+    iscale = max([*amps, vscale / max(min(resistors), 0.001) if resistors else 0.001])
+    nc, nl = system.offsets
+    scale = np.ones(system.nstates)
+    scale[:nc] = [abs(c.charge(e, 0.0)[1]) * vscale for e in c.capacitors]
+    scale[nc:nl] = iscale
+    for k, d in enumerate(c.charged_diodes):
+        model = d.element.diode
+        assert model is not None
+        scale[nl + k] = d.cjo * model.VJ + model.TT * iscale
+    return np.maximum(rtol * 1e-3 * scale, 1e-300)

@@ -1,0 +1,1 @@
+"""ngspice: running it, validating against it, benchmarking beside it."""

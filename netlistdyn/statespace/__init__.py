@@ -1,0 +1,1 @@
+"""The state-space model x' = Ax + Bu, y = Cx + Du and its interconnection."""
