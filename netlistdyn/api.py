@@ -30,6 +30,7 @@ from netlistdyn.workflows.pipelines import (
     compile_model,
     initial_state,
     load_source,
+    output_names,
     read_netlist,
     simulation_pipeline,
     to_number,
@@ -45,7 +46,7 @@ from netlistdyn.workflows.pipelines import (
 def simulate(
     netlist: NetlistSource,
     params: Mapping[str, Any] | None = None,
-    outputs: Sequence[str] | None = None,
+    outputs: str | Sequence[str] | None = None,
     *,
     tstop: float | str | None = None,
     tstep: float | str | None = None,
@@ -64,7 +65,7 @@ def simulate(
         Path, netlist text or file object (see :func:`read_netlist`).
     params : mapping, optional
         ``.param`` overrides; numbers or SPICE numbers (``{"R1": "10u"}``).
-    outputs : sequence of str, optional
+    outputs : str or sequence of str, optional
         ``v(node)``, ``v(a,b)``, ``i(element)`` ...; default every node voltage.
     tstop, tstep : float or str, optional
         Horizon and output step (s); SPICE numbers accepted (``"20m"``).
@@ -94,6 +95,7 @@ def simulate(
     SimulationError
         When the method refused, failed or diverged.
     """
+    outputs = output_names(outputs)
     with api_errors(params):
         if isinstance(x0, Mapping) and x0:
             from netlistdyn.analysis.coordinates import prepare
@@ -139,7 +141,7 @@ def simulate(
 def validate(
     netlist: NetlistSource,
     params: Mapping[str, Any] | None = None,
-    outputs: Sequence[str] | None = None,
+    outputs: str | Sequence[str] | None = None,
     *,
     model_params: Mapping[str, Any] | None = None,
     tstop: float | str | None = None,
@@ -179,6 +181,7 @@ def validate(
     RuntimeError
         When ngspice is not installed.
     """
+    outputs = output_names(outputs)
     from netlistdyn.spice.ngspice import ngspice_missing
 
     missing = ngspice_missing()
@@ -208,7 +211,7 @@ def validate(
 def sweep(
     netlist: NetlistSource,
     params: Mapping[str, Any],
-    outputs: Sequence[str] | None = None,
+    outputs: str | Sequence[str] | None = None,
     *,
     jobs: int = 1,
     eig: str = "auto",
@@ -223,7 +226,7 @@ def sweep(
         Per parameter, its values: a sequence of numbers or SPICE numbers, or
         a string as on the command line (``"1m,100"``, ``"log:1u:1m:4"``).
         Sequences of equal length vary together; otherwise every combination runs.
-    outputs : sequence of str, optional
+    outputs : str or sequence of str, optional
         Output specifications.
     jobs : int
         Worker processes.
@@ -234,6 +237,7 @@ def sweep(
     -------
     Sweep
     """
+    outputs = output_names(outputs)
     from netlistdyn.workflows.sweep import SweepSource, expand_cases, run_sweep
 
     if eig not in ("auto", "all", "extreme"):
@@ -284,7 +288,7 @@ __all__ = [
 def compile(
     netlist: NetlistSource,
     params: Mapping[str, Any] | None = None,
-    outputs: Sequence[str] | None = None,
+    outputs: str | Sequence[str] | None = None,
     coordinates: Sequence[str] | str | None = None,
 ) -> StateSpaceModel:
     """Parse and compile a netlist.
@@ -296,7 +300,7 @@ def compile(
         the title) or an open file such as ``io.StringIO``.
     params : mapping, optional
         ``.param`` overrides: numbers or SPICE numbers (``{"R1": "10u"}``).
-    outputs : sequence of str, optional
+    outputs : str or sequence of str, optional
         Output specifications (default: every node voltage).
     coordinates : sequence of str or str, optional
         Present the model in these variables (``["x(b1)", "v(b1)", ...]``):
@@ -307,6 +311,7 @@ def compile(
     -------
     StateSpaceModel
     """
+    outputs = output_names(outputs)
     from netlistdyn.workflows.pipelines import compile_model
 
     if coordinates is not None:
@@ -321,7 +326,7 @@ def compile(
 def symbolic(
     netlist: NetlistSource,
     params: Mapping[str, Any] | None = None,
-    outputs: Sequence[str] | None = None,
+    outputs: str | Sequence[str] | None = None,
     keep: Sequence[str] | None = None,
 ) -> SymbolicModel:
     """Parse a netlist and compile it with element values as sympy symbols (needs sympy).
@@ -332,7 +337,7 @@ def symbolic(
         As :func:`compile`.
     params : mapping, optional
         ``.param`` overrides (they set the values of elements not in ``keep``).
-    outputs : sequence of str, optional
+    outputs : str or sequence of str, optional
         Output specifications.
     keep : sequence of str, optional
         Element names to keep symbolic; default all.
@@ -343,6 +348,7 @@ def symbolic(
         ``.A .B .C .D .D1`` as ``sympy.ImmutableMatrix``, the labels, and
         ``.numeric(values)`` to evaluate them.
     """
+    outputs = output_names(outputs)
     from netlistdyn.formulation.symbolic import symbolic_model
     from netlistdyn.workflows.pipelines import api_errors, read_netlist
 

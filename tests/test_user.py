@@ -507,3 +507,44 @@ def test_state_units_come_from_the_netlist() -> None:
     )
     assert mechanical.exit_code == 0, mechanical.output
     assert "v(b1) [m/s]" in mechanical.stdout and "x(b1) [m]" in mechanical.stdout
+
+
+# --- API edges a user meets first ---------------------------------------------------------------
+
+
+def test_one_output_given_as_a_string_is_one_output() -> None:
+    """``outputs="v(a,b)"`` is one differential voltage, not five one-character outputs."""
+    as_string = netlistdyn.compile(CIRCUIT1, outputs="v(a)")
+    as_list = netlistdyn.compile(CIRCUIT1, outputs=["v(a)"])
+    assert as_string.outputs == as_list.outputs == ("v(a)",)
+    np.testing.assert_array_equal(as_string.C, as_list.C)
+    sim = netlistdyn.simulate(CIRCUIT1, tstop="1m", outputs="i(L1)")
+    assert sim.outputs == ("i(L1)",)
+
+
+def test_transfer_function_over_an_array_of_frequencies() -> None:
+    """Circuit 1 (R1, C1 into L1): an array of s gives python-control's (noutputs, ninputs, k) shape,
+    and each entry equals the scalar evaluation and the closed form of the notes' G(s)."""
+    from netlistdyn.workflows.pipelines import read_netlist
+
+    model = netlistdyn.compile(CIRCUIT1, outputs=["i(L1)"])
+    s = np.array([0.5j, 10.0 + 3.0j, 2e3j])
+    values = model.transfer_function(s)
+    assert values.shape == (1, 1, 3)
+    for k, z in enumerate(s):
+        np.testing.assert_allclose(values[:, :, k], model.transfer_function(z), rtol=SAME_RTOL)
+    # KCL at a: (Vin − Va)/R1 = (Cs + 1/R2 + 1/(Ls)) Va and I = Va/(Ls), so
+    # I(s)/Vin(s) = 1 / (L C R1 s² + L (1 + R1/R2) s + R1)
+    elements = {e.name: e.value for e in read_netlist(CIRCUIT1).elements}
+    R1, R2, C, L = elements["R1"], elements["R2"], elements["C1"], elements["L1"]
+    closed = 1 / (L * C * R1 * s**2 + L * (1 + R1 / R2) * s + R1)
+    # conditioning of the 2x2 solve: |s|·max(A) / |det| stays below 1e6, so 1e-9 covers rounding
+    np.testing.assert_allclose(values[0, 0], closed, rtol=1e-9)
+    response = model.frequency_response([1.0, 100.0])
+    assert response.response.shape == (1, 1, 2)
+    np.testing.assert_allclose(
+        response("i(L1)", "Vin"), model.transfer_function(1j * np.array([1.0, 100.0]))[0, 0]
+    )
+    np.testing.assert_allclose(response.frequency_hz, np.array([1.0, 100.0]) / (2 * np.pi))
+    with pytest.raises(ValueError, match="1-D"):
+        model.transfer_function(np.ones((2, 2)))

@@ -13,6 +13,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from netlistdyn.base.errors import ControlDimension
 from netlistdyn.circuit.netlist import Diagnostic
@@ -253,26 +254,96 @@ class StateSpaceModel:
         """``control.StateSpace`` with labels (see :func:`to_control`)."""
         return to_control(self)
 
-    def transfer_function(self, s: complex) -> np.ndarray:
-        """Evaluate G(s) = C (sI − A)⁻¹ B + D + s D1 at one complex frequency.
+    def transfer_function(self, s: complex | ArrayLike) -> np.ndarray:
+        """Evaluate G(s) = C (sI − A)⁻¹ B + D + s D1 at complex frequencies.
 
         Parameters
         ----------
-        s : complex
-            Laplace variable (rad/s).
+        s : complex or array_like of complex
+            Laplace variable (rad/s): one value, or an array of them.
 
         Returns
         -------
         numpy.ndarray
-            ``(noutputs, ninputs)`` complex matrix.
+            For one ``s`` the ``(noutputs, ninputs)`` complex matrix; for an array of shape
+            ``(k,)`` the ``(noutputs, ninputs, k)`` array, as python-control's
+            ``StateSpace.__call__`` returns it.
         """
+        points = np.asarray(s, dtype=complex)
+        if points.ndim > 1:
+            raise ValueError(f"transfer_function: s must be a scalar or 1-D, not of shape {points.shape}")
+        values = np.stack([self._at(complex(z)) for z in points.reshape(-1)], axis=-1)
+        return values[:, :, 0] if points.ndim == 0 else values
+
+    def _at(self, s: complex) -> np.ndarray:
         n = self.nstates
         if n:
             resolvent = np.linalg.solve(s * np.eye(n) - self.A, self.B)
             g = self.C @ resolvent
         else:
             g = np.zeros((self.noutputs, self.ninputs), dtype=complex)
-        return g + self.D + s * self.D1
+        return np.asarray(g + self.D + s * self.D1, dtype=complex)
+
+    def frequency_response(self, omega: ArrayLike) -> FrequencyResponse:
+        """G(jω) over angular frequencies, labelled by output and input.
+
+        Parameters
+        ----------
+        omega : array_like of float
+            Angular frequencies (rad/s), 1-D.
+
+        Returns
+        -------
+        FrequencyResponse
+            ``response[i, j, k]`` is G_ij(jω_k); ``magnitude``, ``phase`` (rad) and
+            ``frequency_hz`` follow from it.
+        """
+        w = np.atleast_1d(np.asarray(omega, dtype=float))
+        if w.ndim != 1:
+            raise ValueError(f"frequency_response: omega must be 1-D, not of shape {w.shape}")
+        return FrequencyResponse(w, self.transfer_function(1j * w), self.outputs, self.inputs)
+
+
+@dataclass(frozen=True)
+class FrequencyResponse:
+    """A model's frequency response G(jω), with the names of its outputs and inputs.
+
+    Attributes
+    ----------
+    omega : numpy.ndarray
+        Angular frequencies (rad/s), shape ``(k,)``.
+    response : numpy.ndarray
+        Complex G(jω), shape ``(noutputs, ninputs, k)``.
+    outputs, inputs : tuple of str
+        Row and column labels.
+    """
+
+    omega: np.ndarray
+    response: np.ndarray
+    outputs: tuple[str, ...]
+    inputs: tuple[str, ...]
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        """Frequencies (Hz)."""
+        return self.omega / (2 * np.pi)
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """|G(jω)| (output unit per input unit)."""
+        return np.abs(self.response)
+
+    @property
+    def phase(self) -> np.ndarray:
+        """arg G(jω) (rad), in (−π, π]."""
+        return np.angle(self.response)
+
+    def __call__(self, output: str, input: str) -> np.ndarray:
+        """G(jω) of one output/input pair by name, shape ``(k,)``."""
+        try:
+            return self.response[self.outputs.index(output), self.inputs.index(input)]
+        except ValueError:
+            raise KeyError(f"no output {output!r} or input {input!r} in this response") from None
 
 
 def _refuse_input_derivative(model: StateSpaceModel, target: str) -> None:

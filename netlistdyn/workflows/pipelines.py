@@ -160,15 +160,34 @@ def api_errors(*params: Mapping[str, Any] | None) -> Iterator[None]:
         raise UsageError(argument_message(str(exc), spelling)) from None
 
 
+def output_names(outputs: str | Sequence[str] | None) -> list[str] | None:
+    """The API's ``outputs`` as a list: one string is one output (``"v(a,b)"`` is one voltage).
+
+    Parameters
+    ----------
+    outputs : str, sequence of str or None
+        Output specifications.
+
+    Returns
+    -------
+    list of str or None
+        ``None`` (the default outputs) when ``outputs`` is ``None`` or empty.
+    """
+    if outputs is None:
+        return None
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    return names or None
+
+
 def compile_model(
-    source: NetlistSource, params: Mapping[str, Any] | None = None, outputs: Sequence[str] | None = None
+    source: NetlistSource, params: Mapping[str, Any] | None = None, outputs: str | Sequence[str] | None = None
 ) -> tuple[Netlist, StateSpaceModel]:
     """Parse and compile; (netlist, model). See :func:`netlistdyn.compile`."""
     from netlistdyn.formulation.compile import compile_netlist
 
     with api_errors(params):
         netlist = read_netlist(source, params)
-        return netlist, compile_netlist(netlist, list(outputs) if outputs else None)
+        return netlist, compile_netlist(netlist, output_names(outputs))
 
 
 @dataclass(frozen=True, eq=False)
