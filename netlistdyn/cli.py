@@ -32,6 +32,8 @@ EXIT_INTERNAL = 70
 #: The netlist argument that means standard input, and its name in messages.
 STDIN_NAME = "<stdin>"
 DASH = "-"
+#: Where ``emit`` sends a report that must leave stdout to a CSV (a NUL byte: never a path).
+STDERR = "\0stderr"
 #: Longest text accepted as a number on the command line (a double needs < 30 characters).
 MAX_NUMBER_TEXT = 64
 #: Words longer than this are shortened in error messages (a value of thousands of digits).
@@ -181,12 +183,30 @@ def write_atomic(path: str, text: str) -> None:
 
 
 def emit(text: str, out: str | None) -> None:
-    """Send a finished document to ``out`` (atomically) or stdout."""
-    if out and out != STDOUT:
+    """Send a finished document to ``out`` (atomically), stdout, or stderr (:data:`STDERR`)."""
+    if out == STDERR:
+        sys.stderr.write(text)
+        sys.stderr.flush()
+    elif out and out != STDOUT:
         write_atomic(out, text)
     else:
         sys.stdout.write(text)
         sys.stdout.flush()
+
+
+def csv_beside_report(csv_path: str | None, out: str | None, fmt: str) -> str | None:
+    """Where the report goes when ``--csv -`` takes standard output: stderr for text, refused for JSON.
+
+    Returns
+    -------
+    str or None
+        ``out`` unchanged, or :data:`STDERR` when the CSV alone must be on stdout (for a pipe).
+    """
+    if csv_path != STDOUT or (out and out != STDOUT):
+        return out
+    if fmt == "json":
+        raise UsageError("--csv - and the JSON report both write to standard output; give one of them a file")
+    return STDERR
 
 
 def run_guarded(action: Callable[[], int | None]) -> None:
@@ -836,6 +856,7 @@ def simulate(
         from netlistdyn.workflows.pipelines import simulation_pipeline
 
         check_outputs(csv=csv_path, plot=plot, animate=animate, out=out)
+        report_to = csv_beside_report(csv_path, out, fmt)
         split = _superpose_options(superpose, jobs, oversubscribe, scheduler, coordinates, animate)
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         if split is not None:
@@ -847,7 +868,19 @@ def simulate(
             if refused:
                 raise UsageError(f"{refused[0]} is not available in the sparse descriptor form")
             return _simulate_descriptor(
-                parsed, netlist, outputs, tstop, tstep, rtol, ics, csv_path, plot, fmt, out, quiet, split
+                parsed,
+                netlist,
+                outputs,
+                tstop,
+                tstep,
+                rtol,
+                ics,
+                csv_path,
+                plot,
+                fmt,
+                report_to,
+                quiet,
+                split,
             )
         angles = rod_angles(parsed)
         extra = list(angles)
@@ -916,7 +949,7 @@ def simulate(
                 from netlistdyn.analysis.coordinates import change_dict
 
                 doc["coordinates"] = change_dict(prepared.change)
-            emit(to_json(doc), out)
+            emit(to_json(doc), report_to)
         else:
             summary = (
                 f"{parsed.title}\nsimulated 0..{eng(horizon.tstop, 's')}, {result.time.size} points "
@@ -931,7 +964,7 @@ def simulate(
                 from netlistdyn.analysis.coordinates import change_text
 
                 text += change_text(prepared.change)
-            emit(text, out)
+            emit(text, report_to)
         return EXIT_MISMATCH if unverified else 0
 
     run_guarded(body)

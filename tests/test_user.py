@@ -548,3 +548,25 @@ def test_transfer_function_over_an_array_of_frequencies() -> None:
     np.testing.assert_allclose(response.frequency_hz, np.array([1.0, 100.0]) / (2 * np.pi))
     with pytest.raises(ValueError, match="1-D"):
         model.transfer_function(np.ones((2, 2)))
+
+
+def test_csv_on_stdout_is_the_csv_alone() -> None:
+    """``--csv -`` feeds a pipe: stdout parses as CSV alone (the summary goes to stderr)."""
+    import csv as csv_module
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "netlistdyn", "simulate", str(CIRCUIT1), "--tstop", "1m", "--csv", "-", "-q"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    rows = list(csv_module.reader(io.StringIO(done.stdout)))
+    assert rows[0][0].startswith("time")
+    assert len(rows) > 2 and all(len(row) == len(rows[0]) for row in rows)
+    [float(cell) for row in rows[1:] for cell in row]  # every line after the header is numbers
+    assert "simulated" in done.stderr
+    json_too = CliRunner().invoke(main, ["simulate", str(CIRCUIT1), "--csv", "-", "--format", "json"])
+    assert json_too.exit_code != 0 and "standard output" in json_too.output
