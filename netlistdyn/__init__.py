@@ -15,17 +15,40 @@ file; parameters are numbers or SPICE numbers (``"10u"``).
 
 from __future__ import annotations
 
-from netlistdyn.api import compile, eigenvalues, simulate, sweep, symbolic, validate
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from netlistdyn.base.errors import ControlDimension, NetlistError, TopologyError, UsageError
-from netlistdyn.statespace.model import StateSpaceModel
-from netlistdyn.workflows.pipelines import (
-    NetlistSource,
-    Simulation,
-    SimulationError,
-    Sweep,
-    SweepCase,
-    Validation,
-)
+
+if TYPE_CHECKING:
+    from netlistdyn.api import compile, eigenvalues, simulate, sweep, symbolic, validate
+    from netlistdyn.statespace.model import StateSpaceModel
+    from netlistdyn.workflows.pipelines import (
+        NetlistSource,
+        Simulation,
+        SimulationError,
+        Sweep,
+        SweepCase,
+        Validation,
+    )
+
+#: The public names loaded on first use (PEP 562), by the module that defines them: ``import netlistdyn``
+#: (and so every ``netlistdyn`` command, ``--help`` included) then loads no numpy, scipy or networkx.
+_LAZY = {
+    "compile": "netlistdyn.api",
+    "eigenvalues": "netlistdyn.api",
+    "simulate": "netlistdyn.api",
+    "sweep": "netlistdyn.api",
+    "symbolic": "netlistdyn.api",
+    "validate": "netlistdyn.api",
+    "StateSpaceModel": "netlistdyn.statespace.model",
+    "NetlistSource": "netlistdyn.workflows.pipelines",
+    "Simulation": "netlistdyn.workflows.pipelines",
+    "SimulationError": "netlistdyn.workflows.pipelines",
+    "Sweep": "netlistdyn.workflows.pipelines",
+    "SweepCase": "netlistdyn.workflows.pipelines",
+    "Validation": "netlistdyn.workflows.pipelines",
+}
 
 __all__ = [
     "ControlDimension",
@@ -47,3 +70,18 @@ __all__ = [
     "validate",
 ]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> Any:
+    """A public name of :data:`_LAZY`, imported from its module on first use and then cached here."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names, the lazy public ones included."""
+    return sorted({*globals(), *__all__})

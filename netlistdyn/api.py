@@ -14,10 +14,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from netlistdyn.base.errors import UsageError
-from netlistdyn.formulation.symbolic import SymbolicModel
 from netlistdyn.statespace.model import StateSpaceModel
 from netlistdyn.workflows.pipelines import (
     NetlistSource,
@@ -36,6 +35,9 @@ from netlistdyn.workflows.pipelines import (
     to_number,
     validation_pipeline,
 )
+
+if TYPE_CHECKING:  # the module imports sympy, an optional extra loaded only by symbolic()
+    from netlistdyn.formulation.symbolic import SymbolicModel
 
 # --- compile -----------------------------------------------------------------------
 
