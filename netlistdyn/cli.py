@@ -20,7 +20,7 @@ import click
 
 from netlistdyn.base.atomic import STDOUT, check_writable, install_signal_cleanup, write_text
 from netlistdyn.base.errors import ControlDimension, NetlistError, UsageError
-from netlistdyn.base.values import parse_number
+from netlistdyn.base.values import parse_number, split_number
 
 METHOD_CHOICES = ("auto", "exact", "rational", "krylov", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 EXIT_NETLIST = 1
@@ -58,6 +58,12 @@ def option_number(text: str, what: str, *, positive: bool = False) -> float:
     return value
 
 
+#: Unit words a command-line number may end with (``10ms``, ``1kHz``); anything else after the
+#: number and its scale factor is a typo (``1x``, ``1kk``) and refused, where a netlist field would
+#: ignore it as ngspice does.
+OPTION_UNITS = frozenset({"", "s", "sec", "hz", "v", "a", "f", "h", "ohm", "ohms", "w", "rad"})
+
+
 class SpiceNumber(click.ParamType):
     """A numeric option that reads SPICE numbers (``20m``, ``1u``, ``1e-3``, ``1meg``), as ``--param`` does.
 
@@ -80,12 +86,13 @@ class SpiceNumber(click.ParamType):
             number = float(value)
         else:
             text = str(value).strip()
-            parsed = parse_number(text) if len(text) <= MAX_NUMBER_TEXT else None
-            if parsed is None:
+            parsed = split_number(text) if len(text) <= MAX_NUMBER_TEXT else None
+            if parsed is None or parsed[1].lower() not in OPTION_UNITS:
                 self.fail(
-                    f"{shorten(text)!r} is not a number (SPICE numbers such as 20m, 1u, 1e-3 are accepted)"
+                    f"{shorten(text)!r} is not a number (SPICE numbers such as 20m, 1u, 1e-3, 10ms are "
+                    "accepted: a number, a scale factor, and at most a unit)"
                 )
-            number = parsed
+            number = parsed[0]
         if not math.isfinite(number):
             self.fail(f"{shorten(str(value))!r} is not a finite number")
         if self.positive and number <= 0:
@@ -587,7 +594,10 @@ def analyze(
 )
 @format_option
 @out_option
-def op(netlist: str, params: tuple[str, ...], at: tuple[str, ...], fmt: str, out: str | None) -> None:
+@quiet_option
+def op(
+    netlist: str, params: tuple[str, ...], at: tuple[str, ...], fmt: str, out: str | None, quiet: bool
+) -> None:
     """DC operating point of NETLIST (capacitors open, inductors short): Newton with
     junction limiting, then gmin stepping, then source stepping, as SPICE does."""
 
@@ -1350,6 +1360,7 @@ def load_block(path: str, params: tuple[str, ...], outputs: tuple[str, ...]) -> 
 @format_option
 @path_option("--save", "Save the connected model as .json, .npz or .mat.")
 @out_option
+@quiet_option
 def connect(
     how: str,
     first: str,
@@ -1362,6 +1373,7 @@ def connect(
     fmt: str,
     save: str | None,
     out: str | None,
+    quiet: bool,
 ) -> None:
     """Connect two models (netlists or saved models) in series or feedback and analyse the result.
 

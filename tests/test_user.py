@@ -570,3 +570,52 @@ def test_csv_on_stdout_is_the_csv_alone() -> None:
     assert "simulated" in done.stderr
     json_too = CliRunner().invoke(main, ["simulate", str(CIRCUIT1), "--csv", "-", "--format", "json"])
     assert json_too.exit_code != 0 and "standard output" in json_too.output
+
+
+@pytest.mark.parametrize("typo", ["1x", "1kk", "20mX", "1e-3e"])
+def test_command_line_numbers_refuse_trailing_garbage(typo: str) -> None:
+    """A command-line number is a number, a scale factor and at most a unit: ``--tstop 1x`` is a typo,
+    refused in one line (a netlist field would ignore the letters, as ngspice does)."""
+    result = CliRunner().invoke(main, ["simulate", str(CIRCUIT1), "--tstop", typo])
+    assert result.exit_code != 0
+    assert "is not a number" in result.output and "Traceback" not in result.output
+
+
+@pytest.mark.parametrize(
+    ("spelling", "seconds"), [("20m", 20e-3), ("10ms", 10e-3), ("1meg", 1e6), ("5us", 5e-6)]
+)
+def test_command_line_numbers_with_scale_and_unit(spelling: str, seconds: float) -> None:
+    result = CliRunner().invoke(
+        main, ["simulate", str(CIRCUIT1), "--tstop", spelling, "--format", "json", "-q"]
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["time"][-1] == pytest.approx(seconds, rel=1e-12)
+
+
+def test_op_prints_si_units_and_takes_quiet(tmp_path: Path) -> None:
+    """``op`` writes values with SI prefixes and units, as ``analyze`` does, and accepts ``-q`` like every
+    command; the text agrees with the JSON's full-precision numbers to its 12 digits."""
+    path = tmp_path / "divider.cir"
+    path.write_text(
+        "divider\nV1 in 0 DC 1\nR1 in out 1.5k\nR2 out 0 470\nD1 out 0 dmod\n.model dmod D(IS=1e-14)\n.end\n"
+    )
+    text = CliRunner().invoke(main, ["op", str(path), "-q"])
+    assert text.exit_code == 0, text.output
+    doc = json.loads(CliRunner().invoke(main, ["op", str(path), "--format", "json", "-q"]).output)
+    point = doc["operating_point"]
+    vout = point["voltages"]["v(out)"]
+    assert f"v(out) = {eng(vout, 'V', 12)}" in text.output
+    assert " mV" in text.output or " V" in text.output
+    assert "i(R1) = " in text.output and text.output.split("i(R1) = ")[1].split("\n")[0].endswith("A")
+    # KCL at out closes to rounding: the current through R1 is R2's plus the diode's
+    kcl = point["currents"]["i(R2)"] + point["currents"]["i(D1)"]
+    assert (1 - vout) / 1.5e3 == pytest.approx(kcl, rel=1e-12)
+
+
+def test_connect_takes_quiet(tmp_path: Path) -> None:
+    out = tmp_path / "series.json"
+    result = CliRunner().invoke(
+        main, ["connect", "series", str(CIRCUIT1), str(CIRCUIT1), "--output1", "v(a)", "-q", "-o", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    assert out.exists()

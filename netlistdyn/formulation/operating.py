@@ -14,9 +14,11 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
+from netlistdyn.base.formatting import eng
 from netlistdyn.circuit.netlist import GROUND, STORAGE_KINDS, Diagnostic, Element, Kind, Netlist
 from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD
 from netlistdyn.devices.models import DISPLACEMENT, diode_charge, diode_current
+from netlistdyn.devices.units import signal_units
 from netlistdyn.formulation.nlsystem import NonlinearSystem
 from netlistdyn.formulation.nonlinear import (
     NonlinearCircuit,
@@ -241,22 +243,26 @@ def default_outputs(netlist: Netlist) -> list[str]:
 
 
 def point_text(point: OperatingPoint, netlist: Netlist) -> str:
-    """The operating point as a short report."""
+    """The operating point as a short report, in SI units with prefixes (12 significant digits)."""
+    rows = [(f"v({node})", point.voltages[node]) for node in netlist.nodes]
+    rows += [(f"x({node})", value) for node, value in point.displacements.items()]
+    rows += [(f"i({e.name})", point.currents[e.key]) for e in netlist.elements if e.key in point.currents]
+    units = signal_units(netlist, [name for name, _ in rows])
     lines = [
         f"operating point ({point.method}, {point.iterations} Newton iterations, "
         f"largest residual {point.residual:.3g}):"
     ]
-    for node in netlist.nodes:
-        lines.append(f"  v({node}) = {point.voltages[node]:.12g}")
-    for node, value in point.displacements.items():
-        lines.append(f"  x({node}) = {value:.12g}")
-    for e in netlist.elements:
-        if e.key in point.currents:
-            lines.append(f"  i({e.name}) = {point.currents[e.key]:.12g}")
+    lines += [
+        f"  {name} = {eng(value, unit, OP_DIGITS)}" for (name, value), unit in zip(rows, units, strict=True)
+    ]
     if point.drift:
         lines.append("not an equilibrium for these inputs (the held states move):")
         lines += [f"  d{name}/dt = {value:.12g}" for name, value in point.drift.items()]
     return "\n".join(lines) + "\n"
+
+
+#: Significant digits of an operating point in the text report (JSON keeps every digit).
+OP_DIGITS = 12
 
 
 def point_dict(point: OperatingPoint, netlist: Netlist) -> dict[str, object]:
