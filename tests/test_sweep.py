@@ -114,3 +114,46 @@ def test_sweep_reads_standard_input_as_analyze_does() -> None:
     for a, b in zip(cases_file, cases_stdin, strict=True):
         assert a["stability"] == b["stability"]
         np.testing.assert_allclose(b["eigenvalues"], a["eigenvalues"], rtol=1e-12, atol=0)
+
+
+def test_sweep_as_arrays_records_and_a_data_frame() -> None:
+    """Circuit 1 with R1 = R2 = 100 (the notes' case 2): L C R1 s² + L (1 + R1/R2) s + R1 = 0 is
+    s² + 0.02 s + 1 = 0, so λ = −0.01 ± j·sqrt(1 − 10⁻⁴), ωn = 1 rad/s, ζ = 0.01, τ = 100 s, in every
+    export of the sweep; a failed case (R1 = 0: a voltage source across a capacitor) stays a row with
+    its error."""
+    import pandas
+
+    import netlistdyn
+
+    result = netlistdyn.sweep(NETLISTS / "circuit1.cir", {"R1": [100, 0], "R2": [100, 100]})
+    table = result.eigenvalues
+    assert table.shape == (2, 2)
+    exact = [complex(-0.01, -np.sqrt(1 - 1e-4)), complex(-0.01, np.sqrt(1 - 1e-4))]
+    # the reported bounds of this well-separated pair are ~1e-15; 1e-12 leaves room for the BLAS
+    np.testing.assert_allclose(np.sort_complex(table[0]), exact, rtol=1e-12)
+    assert np.isnan(table[1]).all() and result.cases[1].error is not None
+    frame = result.to_frame()
+    assert isinstance(frame, pandas.DataFrame)
+    ok = frame[frame["case"] == 1]
+    np.testing.assert_allclose(ok["natural_frequency"], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(ok["natural_frequency_hz"], 1 / (2 * np.pi), rtol=1e-12)
+    np.testing.assert_allclose(ok["damping"], 0.01, rtol=1e-10)
+    np.testing.assert_allclose(ok["time_constant"], 100.0, rtol=1e-10)
+    failed = frame[frame["case"] == 2]
+    assert len(failed) == 1 and isinstance(failed["error"].iloc[0], str)
+    assert list(frame.columns[:3]) == ["R1", "R2", "case"]
+
+
+def test_sweep_table_shows_natural_frequency_and_damping() -> None:
+    """Beside each λk the table gives fnk = |λk|/2π and ζk = −Re λk/|λk| (case 2 of the notes:
+    |λ| = 1 rad/s, so fn = 159.2 mHz and ζ = 0.01)."""
+    from click.testing import CliRunner
+
+    from netlistdyn.cli import main
+
+    args = ["sweep", str(NETLISTS / "circuit1.cir"), "--param", "R1=100", "--param", "R2=100"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    head, row = result.output.splitlines()[:2]
+    assert head.split()[-6:] == ["λ1", "[1/s]", "fn1", "ζ1", "λ2", "[1/s]", "fn2", "ζ2"][-6:]
+    assert row.count("159.2 mHz") == 2 and row.split()[-1] == "0.01"

@@ -536,19 +536,42 @@ def _eigenvalue(re: float, im: float) -> str:
     return f"{re:.8g}" + (f"{'-' if im < 0 else '+'}{abs(im):.8g}j" if im else "")
 
 
+def mode_figures(re: float, im: float) -> tuple[float, float]:
+    """Natural frequency (Hz) and damping ratio of the eigenvalue ``re + j im`` (1/s).
+
+    fn = |λ|/2π and ζ = −Re λ/|λ|; a zero eigenvalue has fn = 0 and ζ = NaN (no rate to compare with).
+    """
+    magnitude = math.hypot(re, im)
+    return magnitude / (2 * math.pi), (-re / magnitude if magnitude > 0 else math.nan)
+
+
+def _mode_cells(re: float, im: float) -> list[str]:
+    from netlistdyn.base.formatting import eng
+
+    fn, zeta = mode_figures(re, im)
+    return [_eigenvalue(re, im), eng(fn, "Hz", 4), "-" if math.isnan(zeta) else f"{zeta:.4g}"]
+
+
 def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
     """A table of eigenvalues per case: parameters in the user's spelling, modes in tracked order.
 
     Column λk follows one mode from case to case (see
-    :func:`netlistdyn.workflows.sweep.track`); values in 1/s. Sweeps of more than
-    :data:`SWEEP_COLUMN_MODES` modes list the eigenvalues under each case.
+    :func:`netlistdyn.workflows.sweep.track`); values in 1/s, with the mode's natural frequency
+    fnk (Hz) and damping ratio ζk beside it. Sweeps of more than :data:`SWEEP_COLUMN_MODES` modes
+    list the eigenvalues under each case.
     """
     from netlistdyn.base.formatting import eng
 
     names = list(cases[0]["params"]) if cases else []
     modes = max((len(c.get("eigenvalues", ())) for c in cases), default=0)
     columns = modes <= SWEEP_COLUMN_MODES
-    head = ["case", *names, "stability", *(f"λ{k + 1} [1/s]" for k in range(modes if columns else 0))]
+    per_mode = ("λ{} [1/s]", "fn{}", "ζ{}")
+    head = [
+        "case",
+        *names,
+        "stability",
+        *(h.format(k + 1) for k in range(modes if columns else 0) for h in per_mode),
+    ]
     table: list[list[str]] = []
     below: dict[int, str] = {}
     for number, case in enumerate(cases):
@@ -558,7 +581,8 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
             table.append(cells)
             continue
         values = [_eigenvalue(re, im) for re, im in case["eigenvalues"]]
-        table.append([*cells, case["stability"], *(values if columns else [])])
+        figures = [cell for re, im in case["eigenvalues"] for cell in _mode_cells(re, im)]
+        table.append([*cells, case["stability"], *(figures if columns else [])])
         if not columns:
             below[len(table) - 1] = "eigenvalues: " + ", ".join(values)
     widths = [max(len(h), *(len(r[k]) for r in table if len(r) > k)) for k, h in enumerate(head)]

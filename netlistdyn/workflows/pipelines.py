@@ -603,6 +603,61 @@ class Sweep:
     title: str
     cases: tuple[SweepCase, ...]
 
+    @property
+    def eigenvalues(self) -> NDArray[np.complex128]:
+        """Eigenvalues (1/s) as a ``(ncases, nmodes)`` array, modes in tracked order.
+
+        A failed case, or one with fewer modes than the others, is padded with NaN.
+        """
+        width = max((len(c.eigenvalues) for c in self.cases), default=0)
+        table = np.full((len(self.cases), width), complex(np.nan, np.nan))
+        for row, case in enumerate(self.cases):
+            table[row, : len(case.eigenvalues)] = case.eigenvalues
+        return table
+
+    def to_records(self) -> list[dict[str, Any]]:
+        """One record per case and mode (a failed case: one record with its ``error``).
+
+        Returns
+        -------
+        list of dict
+            The swept parameters by name, then ``case`` (from 1), ``mode`` (from 1), ``real`` and
+            ``imag`` (1/s), ``natural_frequency`` (rad/s), ``natural_frequency_hz`` (Hz), ``damping``
+            (ζ, NaN for a zero eigenvalue), ``time_constant`` (s, inf when Re λ = 0), ``stability``
+            and ``error``.
+        """
+        records: list[dict[str, Any]] = []
+        for number, case in enumerate(self.cases, start=1):
+            base = {**case.params, "case": number}
+            if case.error is not None:
+                records.append({**base, "mode": None, "stability": None, "error": case.error})
+                continue
+            for mode, z in enumerate(case.eigenvalues, start=1):
+                wn = abs(z)
+                records.append(
+                    {
+                        **base,
+                        "mode": mode,
+                        "real": z.real,
+                        "imag": z.imag,
+                        "natural_frequency": wn,
+                        "natural_frequency_hz": wn / (2 * math.pi),
+                        "damping": -z.real / wn if wn > 0 else math.nan,
+                        "time_constant": -1 / z.real if z.real != 0 else math.inf,
+                        "stability": case.stability,
+                        "error": None,
+                    }
+                )
+        return records
+
+    def to_frame(self) -> Any:
+        """:meth:`to_records` as a pandas ``DataFrame`` (needs pandas: ``pip install pandas``)."""
+        try:
+            import pandas
+        except ImportError:
+            raise UsageError("Sweep.to_frame needs pandas: pip install pandas (or use to_records)") from None
+        return pandas.DataFrame.from_records(self.to_records())
+
     def __repr__(self) -> str:
         from netlistdyn.io.report import sweep_text
 
