@@ -273,3 +273,21 @@ def test_controlled_source_gains_and_torsional_springs_in_their_units(tmp_path) 
     out = _symbolic_text(tmp_path, (NETLISTS / "servo_shaft.cir").read_text(), "servo.cir")
     for shown in ("K = 500 N·m/rad", "Jm = 0.0008 kg·m²", "motor = 50 mN·m/A", "gear = 12,", "f(K) [N·m]"):
         assert shown in out, (shown, out)
+
+
+def test_symbolic_model_renders_its_equations_in_latex() -> None:
+    """Jupyter shows a SymbolicModel as its two state equations: each matrix as sympy writes it, beside
+    the labels of x, u and y (Circuit 1: A's first entry is −(R1 + R2)/(C1 R1 R2), as in the notes)."""
+    import sympy
+
+    import netlistdyn
+
+    model = netlistdyn.symbolic(NETLISTS / "circuit1.cir")
+    latex = model._repr_latex_()
+    assert latex.startswith("$$") and latex.endswith("$$")
+    for matrix in (model.A, model.B, model.C, model.D):
+        assert sympy.latex(matrix, mat_delim="[", mat_str="matrix") in latex
+    assert r"\text{q(C1)}" in latex and r"\text{Vin}" in latex and r"\text{v(a)}" in latex
+    R1, R2, C1 = (model.symbols[n][0] for n in ("R1", "R2", "C1"))
+    assert sympy.simplify(model.A[0, 0] + (R1 + R2) / (C1 * R1 * R2)) == 0
+    assert r"\frac{d}{dt}" in latex.split("&=")[0]

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.base.formatting import latex_label
 from netlistdyn.devices.units import element_unit
 
 try:
@@ -77,7 +78,7 @@ class SymbolicModel:
     units : dict
         ``name -> unit`` of each symbol's value (``"N/m"``, ``"Ω"``, ``"A/V"``;
         ``""`` when dimensionless), from the element's kind and mechanical
-        keyword (:func:`~netlistdyn.io.display.element_unit`), never from its name.
+        keyword (:func:`~netlistdyn.devices.units.element_unit`), never from its name.
     """
 
     A: sympy.ImmutableMatrix
@@ -91,6 +92,24 @@ class SymbolicModel:
     symbols: Mapping[str, tuple[sympy.Symbol, float]]
     title: str
     units: Mapping[str, str] = field(default_factory=dict)
+
+    def _repr_latex_(self) -> str:
+        """The state equations in LaTeX, as Jupyter renders them (``x' = A x + B u``, ``y = C x + D u``)."""
+        x = r" \\ ".join(latex_label(s) for s in self.states)
+        u = r" \\ ".join(latex_label(s) for s in self.inputs)
+        y = r" \\ ".join(latex_label(s) for s in self.outputs)
+
+        def block(matrix: sympy.ImmutableMatrix) -> str:
+            return sympy.latex(matrix, mat_delim="[", mat_str="matrix")
+
+        vector = r"\begin{{bmatrix}} {} \end{{bmatrix}}".format
+        lines = [
+            rf"\frac{{d}}{{dt}}{vector(x)} &= {block(self.A)} {vector(x)} + {block(self.B)} {vector(u)}",
+            rf"{vector(y)} &= {block(self.C)} {vector(x)} + {block(self.D)} {vector(u)}",
+        ]
+        if any(entry != 0 for entry in self.D1):
+            lines[-1] += rf" + {block(self.D1)} \frac{{d}}{{dt}}{vector(u)}"
+        return r"$$\begin{aligned}" + r" \\ ".join(lines) + r"\end{aligned}$$"
 
     def numeric(self, values: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
         """The matrices as float arrays, with the netlist's values unless overridden.
