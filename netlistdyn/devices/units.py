@@ -6,6 +6,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from netlistdyn.circuit.netlist import Kind
+from netlistdyn.devices.registry import REGISTRY
+
 
 def _domains(netlist: Any) -> tuple[dict[str, str], dict[str, str]]:
     """Each node's and each element's domain: electrical, translational or rotational.
@@ -127,8 +130,6 @@ def element_unit(netlist: Any, element: Any) -> str:
     str
         The unit, or ``""`` for a dimensionless value or one that cannot be told.
     """
-    from netlistdyn.circuit.netlist import Kind
-
     node_kind, element_kind = _domains(netlist)
     domain = element_kind.get(element.name.lower(), "electrical")
     word = (element.keyword or "").upper()
@@ -142,9 +143,9 @@ def element_unit(netlist: Any, element: Any) -> str:
             "MOTOR": "N·m/A",  # Km: also V·s/rad
             "ROD": "",  # its symbols are the length l_<rod> (m) and g (m/s²)
         }[word]
-    simple = {Kind.RESISTOR: "Ω", Kind.CAPACITOR: "F", Kind.INDUCTOR: "H"}
-    if element.kind in simple and not word:
-        return simple[element.kind]
+    unit = REGISTRY[element.kind].unit  # Ω, F, H: a value whose unit the circuit does not change
+    if unit and not word:
+        return unit
     if element.kind in (Kind.VSOURCE, Kind.ISOURCE):
         column = 0 if element.kind is Kind.VSOURCE else 1
         return DOMAIN_UNITS[domain][column] if domain in DOMAIN_UNITS else ""

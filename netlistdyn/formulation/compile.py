@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 from netlistdyn.base.errors import NetlistError, SingularCircuitError, TopologyError
 from netlistdyn.circuit.netlist import Netlist
 from netlistdyn.circuit.probes import Probe, default_probes, parse_probe
+from netlistdyn.devices.registry import REGISTRY, Registry
 from netlistdyn.formulation.algebra import NotSupportedError
 from netlistdyn.formulation.formulate import (
     OutputDerivativeError,
@@ -65,7 +66,9 @@ def compile_netlist(netlist: Netlist, outputs: Sequence[str] | None = None) -> S
     return formulate(netlist, outputs).model
 
 
-def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formulation:
+def formulate(
+    netlist: Netlist, outputs: Sequence[str] | None = None, devices: Registry = REGISTRY
+) -> Formulation:
     """Choose the normal tree and compile; see :func:`compile_netlist`.
 
     Candidate trees are tried in order of decreasing state count: a tree
@@ -74,6 +77,7 @@ def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formula
     matrix, one with too few meets derivatives it cannot eliminate.
     A nonlinear netlist (diodes, nonlinear behavioural sources) is compiled
     as its linearisation at the DC operating point (:mod:`netlistdyn.nonlinear`).
+    ``devices`` is the registry the element kinds are looked up in (a test's own kinds).
     """
     if netlist.is_nonlinear:
         netlist, outputs = linearised(netlist, outputs)
@@ -83,7 +87,7 @@ def formulate(netlist: Netlist, outputs: Sequence[str] | None = None) -> Formula
     check_value_range(netlist)
     failure: NetlistError | None = None
     topology: TopologyError | None = None
-    for circuit, tree in tree_candidates(netlist):
+    for circuit, tree in tree_candidates(netlist, devices):
         try:
             model = compile_on_tree(netlist, circuit, tree, probes)
         except TopologyError as exc:  # a source loop or cutset: the same on every tree

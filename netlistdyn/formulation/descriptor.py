@@ -31,22 +31,8 @@ from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
 from netlistdyn.circuit.probes import Probe, default_probes, parse_probe
 from netlistdyn.circuit.waveforms import Dc
-
-#: Element kinds the descriptor form assembles.
-SUPPORTED = frozenset(
-    {
-        Kind.RESISTOR,
-        Kind.CAPACITOR,
-        Kind.INDUCTOR,
-        Kind.VSOURCE,
-        Kind.ISOURCE,
-        Kind.VCCS,
-        Kind.VCVS,
-        Kind.CCCS,
-        Kind.CCVS,
-        Kind.COUPLING,
-    }
-)
+from netlistdyn.devices.registry import REGISTRY
+from netlistdyn.devices.traits import Mna, Triplets
 
 
 @dataclass(frozen=True)
@@ -95,35 +81,15 @@ class DescriptorSystem:
 
 
 def supports(netlist: Netlist) -> bool:
-    """True when every element of the netlist can be assembled here."""
-    return all(e.kind in SUPPORTED and e.keyword is None for e in netlist.elements)
+    """True when every element of the netlist can be assembled here (its device has a stamp)."""
+    return all(REGISTRY[e.kind].stamp is not None and e.keyword is None for e in netlist.elements)
 
 
-class _Triplets:
-    """Growing COO lists for one sparse matrix."""
-
-    def __init__(self) -> None:
-        self.rows: list[int] = []
-        self.cols: list[int] = []
-        self.vals: list[float] = []
-
-    def add(self, row: int, col: int, value: float) -> None:
-        if row >= 0 and col >= 0:
-            self.rows.append(row)
-            self.cols.append(col)
-            self.vals.append(value)
-
-    def branch(self, a: int, b: int, col_a: int, col_b: int, value: float) -> None:
-        """The 2x2 stamp ``value·[[1, −1], [−1, 1]]`` on rows (a, b), columns (col_a, col_b)."""
-        self.add(a, col_a, value)
-        self.add(a, col_b, -value)
-        self.add(b, col_a, -value)
-        self.add(b, col_b, value)
-
-    def matrix(self, shape: tuple[int, int]) -> sp.csc_array:
-        return sp.csc_array(
-            (np.asarray(self.vals, dtype=float), (np.asarray(self.rows), np.asarray(self.cols))), shape=shape
-        )
+def _matrix(triplets: Triplets, shape: tuple[int, int]) -> sp.csc_array:
+    return sp.csc_array(
+        (np.asarray(triplets.vals, dtype=float), (np.asarray(triplets.rows), np.asarray(triplets.cols))),
+        shape=shape,
+    )
 
 
 def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: bool = True) -> DescriptorSystem:
@@ -161,9 +127,10 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: boo
     branch_of: dict[str, int] = {}  # element key -> index of its current unknown
     inductance: dict[str, float] = {}
     for elem in netlist.elements:
-        if elem.kind not in SUPPORTED or elem.keyword is not None:
+        device = REGISTRY[elem.kind]
+        if device.stamp is None or elem.keyword is not None:
             raise NetlistError(f"{elem.label}: not supported by the sparse descriptor form", elem.loc)
-        if elem.kind in (Kind.INDUCTOR, Kind.VSOURCE, Kind.VCVS, Kind.CCVS):
+        if device.branch_current:
             branch_of[elem.key] = n_nodes + len(branch_of)
             names.append(f"i({elem.name})")
             if elem.kind is Kind.INDUCTOR:
@@ -171,55 +138,14 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: boo
     n = n_nodes + len(branch_of)
     sources = netlist.sources
     source_col = {e.key: j for j, e in enumerate(sources)}
-    e_t, a_t, b_t = _Triplets(), _Triplets(), _Triplets()
+    mna = Mna(index, branch_of, inductance, source_col, Triplets(), Triplets(), Triplets())
     for elem in netlist.elements:
-        a, b = (index[elem.nodes[0]], index[elem.nodes[1]]) if len(elem.nodes) == 2 else (-1, -1)
-        kind = elem.kind
-        if kind is Kind.RESISTOR:
-            a_t.branch(a, b, a, b, -1.0 / elem.value)
-        elif kind is Kind.CAPACITOR:
-            e_t.branch(a, b, a, b, elem.value)
-        elif kind is Kind.ISOURCE:
-            b_t.add(a, source_col[elem.key], -1.0)
-            b_t.add(b, source_col[elem.key], 1.0)
-        elif kind is Kind.VCCS:
-            c, d = (index[node] for node in elem.control_nodes or (GROUND, GROUND))
-            a_t.branch(a, b, c, d, -elem.value)
-        elif kind is Kind.COUPLING:
-            first, second = elem.coupled or ("", "")
-            if first not in inductance or second not in inductance:
-                raise NetlistError(f"{elem.name}: couples an element that is not an inductor", elem.loc)
-            mutual = elem.value * float(np.sqrt(inductance[first] * inductance[second]))
-            e_t.add(branch_of[first], branch_of[second], mutual)
-            e_t.add(branch_of[second], branch_of[first], mutual)
-        elif kind is Kind.CCCS:
-            sense = branch_of.get(elem.control_source or "")
-            if sense is None:
-                raise NetlistError(f"{elem.name}: no voltage source {elem.control_source!r}", elem.loc)
-            a_t.add(a, sense, -elem.value)
-            a_t.add(b, sense, elem.value)
-        else:  # the current unknown k of L, V, E, H: KCL columns and its own branch row
-            k = branch_of[elem.key]
-            a_t.add(a, k, -1.0)
-            a_t.add(b, k, 1.0)
-            a_t.add(k, a, 1.0)
-            a_t.add(k, b, -1.0)
-            if kind is Kind.INDUCTOR:
-                e_t.add(k, k, elem.value)
-            elif kind is Kind.VSOURCE:
-                b_t.add(k, source_col[elem.key], -1.0)
-            elif kind is Kind.VCVS:
-                c, d = (index[node] for node in elem.control_nodes or (GROUND, GROUND))
-                a_t.add(k, c, -elem.value)
-                a_t.add(k, d, elem.value)
-            else:  # CCVS
-                sense = branch_of.get(elem.control_source or "")
-                if sense is None:
-                    raise NetlistError(f"{elem.name}: no voltage source {elem.control_source!r}", elem.loc)
-                a_t.add(k, sense, -elem.value)
-    E = e_t.matrix((n, n))
-    A = a_t.matrix((n, n))
-    B = b_t.matrix((n, len(sources)))
+        stamp = REGISTRY[elem.kind].stamp
+        assert stamp is not None
+        stamp(elem, mna)
+    E = _matrix(mna.E, (n, n))
+    A = _matrix(mna.A, (n, n))
+    B = _matrix(mna.B, (n, len(sources)))
     E.eliminate_zeros()
     probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
     C, D = _output_rows(probes, netlist, index, branch_of, source_col, n)
@@ -253,7 +179,7 @@ def _output_rows(
     source_col: dict[str, int],
     n: int,
 ) -> tuple[sp.csr_array, sp.csr_array]:
-    c_t, d_t = _Triplets(), _Triplets()
+    c_t, d_t = Triplets(), Triplets()
     for row, probe in enumerate(probes):
         if probe.kind == "v":
             c_t.add(row, index[probe.nodes[0]], 1.0)
@@ -281,7 +207,7 @@ def _output_rows(
                 f"--output {probe.name}: a capacitor current is not available in the sparse descriptor form"
             )
     p = len(probes)
-    return c_t.matrix((p, n)).tocsr(), d_t.matrix((p, len(source_col))).tocsr()
+    return _matrix(c_t, (p, n)).tocsr(), _matrix(d_t, (p, len(source_col))).tocsr()
 
 
 def initial_inputs(netlist: Netlist) -> NDArray[np.float64]:

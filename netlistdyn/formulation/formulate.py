@@ -35,7 +35,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -50,6 +50,8 @@ from netlistdyn.base.errors import (
 from netlistdyn.circuit.netlist import GROUND, Diagnostic, Element, Kind, Netlist
 from netlistdyn.circuit.probes import Probe
 from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD, state_prefix
+from netlistdyn.devices.registry import REGISTRY, Registry
+from netlistdyn.devices.traits import ElementLaws
 from netlistdyn.formulation.algebra import EXACT, NUMERIC, Algebra, Block, NotSupportedError, _clean
 from netlistdyn.formulation.graph import CircuitGraph, TreeSplit, build_graph, check_sources, normal_tree
 from netlistdyn.statespace.model import CompileInfo, ExcessElement, Pencil, StateShift, StateSpaceModel
@@ -220,7 +222,7 @@ def held_displacements(
 EXHAUSTIVE_TRANSFORMERS = 8
 
 
-def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
+def tree_candidates(netlist: Netlist, devices: Registry = REGISTRY) -> list[tuple[CircuitGraph, TreeSplit]]:
     """Normal trees to try, best first.
 
     Without transformers there is one. An ideal transformer (gear, lever,
@@ -230,7 +232,7 @@ def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
     states, so every orientation is tried (greedily above
     :data:`EXHAUSTIVE_TRANSFORMERS`) and ranked by the number of states it
     gives — the order of complexity is the largest — preferring the default
-    orientation (first port in the tree) on ties.
+    orientation (first port in the tree) on ties. ``devices``: the registry of the element kinds.
     """
     keys = [e.key for e in netlist.elements if e.kind is Kind.TRANSFORMER]
     controlled = {e.kind for e in netlist.elements} & {Kind.VCCS, Kind.CCCS, Kind.VCVS, Kind.CCVS}
@@ -251,7 +253,7 @@ def tree_candidates(netlist: Netlist) -> list[tuple[CircuitGraph, TreeSplit]]:
 
     found: list[tuple[int, int, int, CircuitGraph, TreeSplit]] = []
     for rank, resistive in enumerate(variants):
-        for count, circuit, tree in _transformer_trees(netlist, keys, resistive, states_of):
+        for count, circuit, tree in _transformer_trees(netlist, keys, resistive, states_of, devices):
             found.append((states_of(circuit, tree), rank, count, circuit, tree))
     if not found:
         element = next(e for e in netlist.elements if e.kind is Kind.TRANSFORMER)
@@ -276,11 +278,12 @@ def _transformer_trees(
     keys: list[str],
     resistive: frozenset[Kind],
     states_of: Callable[[CircuitGraph, TreeSplit], int],
+    devices: Registry = REGISTRY,
 ) -> list[tuple[int, CircuitGraph, TreeSplit]]:
     """Normal trees over the transformer orientations (exhaustive, or greedy above the limit)."""
 
     def attempt(swapped: frozenset[str]) -> tuple[int, CircuitGraph, TreeSplit] | None:
-        circuit = build_graph(netlist, swapped, resistive)
+        circuit = build_graph(netlist, swapped, resistive, devices)
         tree = normal_tree(circuit)
         if _misplaced_transformers(circuit, tree):
             return None
@@ -346,89 +349,40 @@ class BranchLaws:
     u: list[tuple[int, int, Any]]
 
 
-#: A branch of one element: ``(element key, port)``; port 0, or 0 and 1 for a transformer's ports.
-BranchRef = tuple[str, int]
-
-
-class ElementLaws(NamedTuple):
-    """One element's constitutive equations, in the quantities of named branches.
-
-    The same six fields as :class:`BranchLaws` (tuples), with :data:`BranchRef` rows
-    and columns in place of branch indices: row ``(key, port)`` is that
-    branch's law; a ``v``/``i``/``dv``/``di`` column names the branch whose
-    voltage or current the coefficient multiplies (its own or another's:
-    a transformer's other port, an F/H source's controlling element, a
-    coupled inductor); a ``u`` column is the key of the independent source.
-    """
-
-    v: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
-    i: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
-    dv: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
-    di: tuple[tuple[BranchRef, BranchRef, Any], ...] = ()
-    control: tuple[tuple[BranchRef, tuple[str, str], Any], ...] = ()
-    u: tuple[tuple[BranchRef, str, Any], ...] = ()
-
-
 def element_laws(
-    element: Element, value: Callable[[Element], Any], mutual: Callable[[Element], Any]
+    element: Element,
+    value: Callable[[Element], Any],
+    mutual: Callable[[Element], Any],
+    devices: Registry = REGISTRY,
 ) -> ElementLaws:
-    """The constitutive equations of one linear element (SPICE sign conventions).
+    """The constitutive equations of one element (SPICE sign conventions), from its device's record.
 
-    This is the one statement of each linear element's law: the tree/cotree
+    Each device family states its law once (:attr:`~netlistdyn.devices.traits.DeviceKind.law`,
+    e.g. :func:`netlistdyn.devices.passive.resistor_law`): the tree/cotree
     formulation (:func:`branch_laws`, numeric and symbolic) and the modified
-    nodal equations of :mod:`netlistdyn.nonlinear` both read it.
+    nodal equations of :mod:`netlistdyn.formulation.nonlinear` both read it here.
 
     Parameters
     ----------
     element : Element
-        An R, C, L, V, I, E, F, G, H, transformer or K element.
+        An R, C, L, V, I, E, F, G, H, transformer or K element (or a nonlinear
+        capacitor, inductor or behavioural voltage source, whose law has a linear form).
     value : callable
         ``value(element)``: the element's value (Ω, F, H, V/V, A/A, …), a
         float or a symbol.
     mutual : callable
         ``mutual(coupling)``: the mutual inductance (H) of a ``K`` element.
+    devices : Registry
+        Where the law is looked up.
 
     Returns
     -------
     ElementLaws
         A K element gives the two inductors' mutual terms in their rows.
     """
-    kind = element.kind
-    key = element.key
-    own = (key, 0)
-    if kind is Kind.RESISTOR:  # v − R i = 0
-        return ElementLaws(v=((own, own, 1),), i=((own, own, -value(element)),))
-    if kind is Kind.CAPACITOR:  # i − C v' = 0
-        return ElementLaws(i=((own, own, 1),), dv=((own, own, -value(element)),))
-    if kind is Kind.INDUCTOR:  # v − L i' − Σ M i'_other = 0 (the M terms come with K)
-        return ElementLaws(v=((own, own, 1),), di=((own, own, -value(element)),))
-    if kind is Kind.VSOURCE:  # v − u = 0
-        return ElementLaws(v=((own, own, 1),), u=((own, key, -1),))
-    if kind is Kind.ISOURCE:  # i − u = 0
-        return ElementLaws(i=((own, own, 1),), u=((own, key, -1),))
-    if kind in (Kind.VCVS, Kind.VCCS):  # v (or i) − gain·(v_a − v_b) = 0
-        assert element.control_nodes is not None
-        control = ((own, element.control_nodes, -value(element)),)
-        if kind is Kind.VCVS:
-            return ElementLaws(v=((own, own, 1),), control=control)
-        return ElementLaws(i=((own, own, 1),), control=control)
-    if kind in (Kind.CCCS, Kind.CCVS):  # i (or v) − gain·i_control = 0
-        assert element.control_source is not None
-        gain = (own, (element.control_source, 0), -value(element))
-        if kind is Kind.CCCS:
-            return ElementLaws(i=((own, own, 1), gain))
-        return ElementLaws(v=((own, own, 1),), i=(gain,))
-    if kind is Kind.TRANSFORMER:
-        # Port 1: v1 − N v2 = 0.  Port 2: i2 + N i1 = 0 (lossless: v1 i1 + v2 i2 = 0).
-        second = (key, 1)
-        n = value(element)
-        return ElementLaws(v=((own, own, 1), (own, second, -n)), i=((second, second, 1), (second, own, n)))
-    if kind is Kind.COUPLING:  # −M i'_b in L_a's law, −M i'_a in L_b's
-        assert element.coupled is not None
-        a, b = ((name, 0) for name in element.coupled)
-        m = mutual(element)
-        return ElementLaws(di=((a, b, -m), (b, a, -m)))
-    raise AssertionError(kind)  # pragma: no cover - the parser admits no other linear kinds
+    law = devices[element.kind].law
+    assert law is not None, element.kind  # the parser admits no other linear kinds
+    return law(element, value, mutual)
 
 
 def branch_laws(
@@ -484,10 +438,10 @@ def branch_laws(
 
     for branch in circuit.branches:
         if branch.port == 0:  # a transformer's laws give the rows of both its ports
-            place(element_laws(branch.element, value, coupling))
+            place(element_laws(branch.element, value, coupling, circuit.devices))
     for element in netlist.elements:
         if element.kind is Kind.COUPLING:
-            place(element_laws(element, value, coupling))
+            place(element_laws(element, value, coupling, circuit.devices))
     return laws
 
 

@@ -20,7 +20,6 @@ the element (SPICE's convention for every element, sources included).
 
 from __future__ import annotations
 
-import enum
 from collections import deque
 from dataclasses import dataclass
 
@@ -30,31 +29,8 @@ import scipy.sparse as sp
 
 from netlistdyn.base.errors import TopologyError
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
-
-
-class Role(enum.IntEnum):
-    """Tree priority of a branch (lower goes into the tree first)."""
-
-    VSOURCE = 0
-    VTYPE = 1  # controlled voltage port (E, H) or transformer port taken as voltage-defined
-    CAPACITOR = 2
-    RESISTOR = 3
-    INDUCTOR = 4
-    ITYPE = 5  # controlled current port (G, F) or transformer port taken as current-defined
-    ISOURCE = 6
-
-
-_ROLE_OF_KIND = {
-    Kind.VSOURCE: Role.VSOURCE,
-    Kind.VCVS: Role.VTYPE,
-    Kind.CCVS: Role.VTYPE,
-    Kind.CAPACITOR: Role.CAPACITOR,
-    Kind.RESISTOR: Role.RESISTOR,
-    Kind.INDUCTOR: Role.INDUCTOR,
-    Kind.VCCS: Role.ITYPE,
-    Kind.CCCS: Role.ITYPE,
-    Kind.ISOURCE: Role.ISOURCE,
-}
+from netlistdyn.devices.registry import REGISTRY, Registry
+from netlistdyn.devices.traits import Role
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,12 +72,13 @@ class CircuitGraph:
     """Branches and nodes of a circuit; ``graph`` is the networkx view.
 
     The multigraph's edge keys are branch indices, so parallel elements are
-    distinct edges.
+    distinct edges. ``devices`` is the registry its elements' laws are looked up in.
     """
 
     branches: tuple[Branch, ...]
     nodes: tuple[str, ...]
     graph: nx.MultiGraph
+    devices: Registry = REGISTRY
 
     @property
     def nbranches(self) -> int:
@@ -163,7 +140,10 @@ class TreeSplit:
 
 
 def build_graph(
-    netlist: Netlist, swapped: frozenset[str] = frozenset(), resistive: frozenset[Kind] = frozenset()
+    netlist: Netlist,
+    swapped: frozenset[str] = frozenset(),
+    resistive: frozenset[Kind] = frozenset(),
+    devices: Registry = REGISTRY,
 ) -> CircuitGraph:
     """Make the branch graph of a netlist.
 
@@ -179,6 +159,8 @@ def build_graph(
         priority instead of a source's: a VCCS driven by its own terminals
         is a conductance, and as a link it would make an inductor in series
         with it an excess element although its current is a state.
+    devices : Registry
+        Where each element's tree role (:attr:`~netlistdyn.devices.traits.DeviceKind.role`) is looked up.
 
     Returns
     -------
@@ -201,7 +183,8 @@ def build_graph(
             branches.append(Branch(len(branches), element, 1, p2, n2, second))
             continue
         pos, neg = element.nodes
-        role = Role.RESISTOR if element.kind in resistive else _ROLE_OF_KIND[element.kind]
+        role = Role.RESISTOR if element.kind in resistive else devices[element.kind].role
+        assert role is not None, element.kind  # every two-terminal linear kind has one
         branches.append(Branch(len(branches), element, 0, pos, neg, role))
     graph = nx.MultiGraph()
     graph.add_node(GROUND)
@@ -209,7 +192,7 @@ def build_graph(
         graph.add_edge(branch.pos, branch.neg, key=branch.index, role=int(branch.role))
     _check_references(netlist, graph)
     _check_grounded(netlist, graph)
-    return CircuitGraph(tuple(branches), tuple(graph.nodes), graph)
+    return CircuitGraph(tuple(branches), tuple(graph.nodes), graph, devices)
 
 
 def _check_references(netlist: Netlist, graph: nx.MultiGraph) -> None:

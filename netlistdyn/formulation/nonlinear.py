@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -61,7 +61,9 @@ from netlistdyn.devices.models import (
     diode_current_array,
     thermal_voltage,
 )
-from netlistdyn.formulation.formulate import BranchRef, ElementLaws, _numeric_mutual, element_laws
+from netlistdyn.devices.registry import REGISTRY
+from netlistdyn.devices.traits import BranchRef, ElementLaws
+from netlistdyn.formulation.formulate import _numeric_mutual, element_laws
 
 #: Relative Newton step at which the solution is converged (then one more step polishes it).
 NEWTON_RTOL = 1e-13
@@ -294,24 +296,8 @@ def _vte(model_n: float) -> float:
     return model_n * thermal_voltage()
 
 
-#: The linear element whose law has the form of a nonlinear capacitor's or inductor's.
-_LINEAR_FORM = {Kind.CAPACITANCE: Kind.CAPACITOR, Kind.CHARGE: Kind.CAPACITOR, Kind.INDUCTANCE: Kind.INDUCTOR}
-#: Kinds whose law :func:`netlistdyn.formulation.formulate.element_laws` states.
-LINEAR_KINDS = frozenset(
-    {
-        Kind.RESISTOR,
-        Kind.CAPACITOR,
-        Kind.INDUCTOR,
-        Kind.VSOURCE,
-        Kind.ISOURCE,
-        Kind.VCVS,
-        Kind.VCCS,
-        Kind.CCCS,
-        Kind.CCVS,
-        Kind.TRANSFORMER,
-        Kind.COUPLING,
-    }
-)
+#: Kinds whose law is linear (:func:`netlistdyn.formulation.formulate.element_laws` states it).
+LINEAR_KINDS = frozenset(d.kind for d in REGISTRY if d.linear)
 
 
 def _junction_nodes(diode: Element) -> tuple[str, str]:
@@ -352,13 +338,9 @@ def _element_law(e: Element, keyed: Mapping[str, Element]) -> ElementLaws | None
     def value(element: Element) -> float:
         return element.value
 
-    if e.kind in LINEAR_KINDS:
-        return element_laws(e, value, mutual)
-    if e.kind in STORAGE_KINDS:
-        return element_laws(replace(e, kind=_LINEAR_FORM[e.kind]), value, mutual)
-    if e.kind is Kind.BVOLTAGE:
-        return ElementLaws(v=(((e.key, 0), (e.key, 0), 1.0),))
-    return None
+    if REGISTRY[e.kind].law is None:
+        return None
+    return element_laws(e, value, mutual)
 
 
 @dataclass(frozen=True)

@@ -30,13 +30,18 @@ from numpy.typing import NDArray
 from netlistdyn.base.processes import run_in_child, run_in_child_status
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 from netlistdyn.circuit.probes import Probe
+from netlistdyn.devices.registry import REGISTRY
+from netlistdyn.devices.traits import SpiceText
 
 INSTALL_HINT = (
     "ngspice is not available: install it with "
     "'apt-get install -y ngspice libngspice0-dev && pip install PySpice'"
 )
-#: ngspice vector names are case-folded; node and element keys already are.
-_BRANCH_KINDS = (Kind.VSOURCE, Kind.INDUCTOR, Kind.VCVS, Kind.CCVS)
+
+
+def _has_branch(element: Element) -> bool:
+    """True when ngspice has the element's current as a branch vector (V, L, E, H)."""
+    return REGISTRY[element.kind].branch_current
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,27 +152,6 @@ def ngspice_missing() -> str | None:
     return None
 
 
-_LETTER = {
-    Kind.RESISTOR: "R",
-    Kind.CAPACITOR: "C",
-    Kind.INDUCTOR: "L",
-    Kind.VSOURCE: "V",
-    Kind.ISOURCE: "I",
-    Kind.VCVS: "E",
-    Kind.VCCS: "G",
-    Kind.CCCS: "F",
-    Kind.CCVS: "H",
-    Kind.COUPLING: "K",
-    Kind.TRANSFORMER: "E",
-    Kind.DIODE: "D",
-    Kind.BVOLTAGE: "B",
-    Kind.BCURRENT: "B",
-    Kind.CAPACITANCE: "C",
-    Kind.CHARGE: "C",
-    Kind.INDUCTANCE: "L",
-}
-
-
 def spice_name(element: Element) -> str:
     """The element's name in the ngspice netlist: its SPICE letter first.
 
@@ -175,7 +159,7 @@ def spice_name(element: Element) -> str:
     flattened subcircuits become ``<letter>_<keyword>_<name>`` with every
     character ngspice might misread replaced by ``_``.
     """
-    letter = _LETTER[element.kind]
+    letter = REGISTRY[element.kind].letter
     plain = element.name.replace("_", "").isalnum()
     if element.keyword is None and plain and element.name[0].upper() == letter:
         return element.name
@@ -216,9 +200,7 @@ def build_circuit(
     from PySpice.Spice.Netlist import Circuit
 
     circuit = Circuit(netlist.title or "netlistdyn")
-    sensed = {
-        p.element for p in probes if p.kind == "i" and netlist.element(p.element).kind not in _BRANCH_KINDS
-    }
+    sensed = {p.element for p in probes if p.kind == "i" and not _has_branch(netlist.element(p.element))}
     for probe in probes:
         if probe.kind == "x":  # displacement: a unit capacitor integrating the velocity
             node = _integrator_node(probe)
@@ -275,80 +257,21 @@ def _add_element(
     span: tuple[float, float],
     ac: bool = False,
 ) -> None:
-    name = spice_name(element)[1:]  # PySpice adds the letter
-    p, n = _node(pos), _node(neg)
-    kind = element.kind
-    if kind is Kind.RESISTOR:
-        circuit.R(name, p, n, element.value)
-    elif kind is Kind.CAPACITOR:
-        ic = {} if element.ic is None else {"initial_condition": element.ic}
-        circuit.C(name, p, n, element.value, **ic)
-    elif kind is Kind.INDUCTOR:
-        ic = {} if element.ic is None else {"initial_condition": element.ic}
-        circuit.L(name, p, n, element.value, **ic)
-    elif kind in (Kind.VSOURCE, Kind.ISOURCE):
-        waveform = element.waveform.resolved(*span) if element.waveform is not None else None
-        wave = waveform.spice() if waveform is not None else f"DC {element.value!r}"
-        if element.waveform is not None and element.value:
-            wave = f"DC {element.value!r} {wave}"
-        if ac:
-            wave = f"{wave} AC 1"
-        (circuit.V if kind is Kind.VSOURCE else circuit.I)(name, p, n, wave)
-    elif kind is Kind.VCVS:
-        assert element.control_nodes is not None
-        cp, cn = (_node(x) for x in element.control_nodes)
-        circuit.VCVS(name, p, n, cp, cn, voltage_gain=element.value)
-    elif kind is Kind.VCCS:
-        assert element.control_nodes is not None
-        cp, cn = (_node(x) for x in element.control_nodes)
-        circuit.VCCS(name, p, n, cp, cn, transconductance=element.value)
-    elif kind is Kind.CCCS:
-        assert element.control_source is not None
-        sense = spice_name(netlist.element(element.control_source))
-        circuit.CCCS(name, p, n, sense, current_gain=element.value)
-    elif kind is Kind.CCVS:
-        assert element.control_source is not None
-        sense = spice_name(netlist.element(element.control_source))
-        circuit.CCVS(name, p, n, sense, transresistance=element.value)
-    elif kind is Kind.TRANSFORMER:
-        # Ideal transformer: v1 = N v2 (E on port 1) and i2 = −N i1 (F on port 2, sensing i1).
-        p1, n1, p2, n2 = (_node(x) for x in element.nodes)
-        inner = f"{name}_port1"
-        circuit.V(f"{name}_sense", p1, inner, 0)
-        circuit.VCVS(name, inner, n1, p2, n2, voltage_gain=element.value)
-        circuit.CCCS(name, p2, n2, f"V{name}_sense", current_gain=-element.value)
-    elif kind is Kind.COUPLING:
-        assert element.coupled is not None
-        # PySpice prefixes the inductor names with "L" itself.
-        first, second = (spice_name(netlist.element(k))[1:] for k in element.coupled)
-        circuit.K(name, first, second, element.value)
-    elif kind is Kind.DIODE:
-        model = element.diode
-        assert model is not None
-        mname = f"dmod_{name}".replace(".", "_")
-        circuit.model(
-            mname,
-            "D",
-            IS=model.IS,
-            N=model.N,
-            RS=model.RS,
-            CJO=model.CJO,
-            VJ=model.VJ,
-            M=model.M,
-            TT=model.TT,
-            FC=model.FC,
-        )
-        circuit.D(name, p, n, model=mname, area=element.value)
-    elif kind in (Kind.BVOLTAGE, Kind.BCURRENT):
-        text = _expression_text(element.expression or "", netlist)
-        expression = {("voltage_expression" if kind is Kind.BVOLTAGE else "current_expression"): text}
-        circuit.BehavioralSource(name, p, n, **expression)
-    elif kind in (Kind.CAPACITANCE, Kind.CHARGE, Kind.INDUCTANCE):  # ngspice's C={..}, Q={..}, L={..}
-        key = {Kind.CAPACITANCE: "C", Kind.CHARGE: "Q", Kind.INDUCTANCE: "L"}[kind]
-        value = f"{key}={{{_expression_text(element.expression or '', netlist)}}}"
-        (circuit.L if kind is Kind.INDUCTANCE else circuit.C)(name, p, n, value)
-    else:
-        raise NotImplementedError(f"{element.label}: no ngspice translation for {kind.name}")
+    """Write ``element`` into ``circuit`` as its device's writer does (``DeviceKind.spice``)."""
+    write = REGISTRY[element.kind].spice
+    if write is None:
+        raise NotImplementedError(f"{element.label}: no ngspice translation for {element.kind.name}")
+    text = SpiceText(
+        spice_name(element)[1:],  # PySpice adds the letter
+        _node(pos),
+        _node(neg),
+        lambda key: spice_name(netlist.element(key)),
+        lambda expression: _expression_text(expression, netlist),
+        _node,
+        span,
+        ac,
+    )
+    write(circuit, element, text)
 
 
 def _expression_text(text: str, netlist: Netlist) -> str:
@@ -377,7 +300,7 @@ def _vector(analysis: Any, probe: Probe, netlist: Netlist) -> NDArray[np.float64
     if probe.kind == "x":
         return np.asarray(analysis.nodes[_integrator_node(probe)], dtype=float)
     element = netlist.element(probe.element)
-    if element.kind in _BRANCH_KINDS:
+    if _has_branch(element):
         current = np.asarray(analysis.branches[spice_name(element).lower()], dtype=float)
     else:
         current = np.asarray(analysis.branches[_sense_name(element).lower()], dtype=float)
@@ -576,7 +499,7 @@ def _batch_vectors(netlist: Netlist, probes: Sequence[Probe]) -> tuple[list[str]
             nodes.append(_integrator_node(probe))
         else:
             element = netlist.element(probe.element)
-            name = spice_name(element) if element.kind in _BRANCH_KINDS else _sense_name(element)
+            name = spice_name(element) if _has_branch(element) else _sense_name(element)
             branches.append(name.lower())
     return list(dict.fromkeys(nodes)), list(dict.fromkeys(branches))
 

@@ -1,0 +1,76 @@
+"""Independent voltage and current sources (``V``, ``I``): the model's inputs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from netlistdyn.circuit.netlist import Element, Kind
+from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+
+
+def vsource_law(
+    element: Element, value: Callable[[Element], Any], mutual: Callable[[Element], Any]
+) -> ElementLaws:
+    """v − u = 0."""
+    own = (element.key, 0)
+    return ElementLaws(v=((own, own, 1),), u=((own, element.key, -1),))
+
+
+def isource_law(
+    element: Element, value: Callable[[Element], Any], mutual: Callable[[Element], Any]
+) -> ElementLaws:
+    """i − u = 0."""
+    own = (element.key, 0)
+    return ElementLaws(i=((own, own, 1),), u=((own, element.key, -1),))
+
+
+def vsource_stamp(elem: Element, mna: Mna) -> None:
+    """Current unknown k with v(n+) − v(n−) = u."""
+    k = mna.current(elem)
+    mna.B.add(k, mna.source_col[elem.key], -1.0)
+
+
+def isource_stamp(elem: Element, mna: Mna) -> None:
+    """u taken out of n+ and put into n−."""
+    a, b = mna.ends(elem)
+    mna.B.add(a, mna.source_col[elem.key], -1.0)
+    mna.B.add(b, mna.source_col[elem.key], 1.0)
+
+
+def write_source(circuit: Any, element: Element, text: SpiceText) -> None:
+    """``V``/``I name n+ n− [DC value] [waveform] [AC 1]``, the waveform written out in full."""
+    waveform = element.waveform.resolved(*text.span) if element.waveform is not None else None
+    wave = waveform.spice() if waveform is not None else f"DC {element.value!r}"
+    if element.waveform is not None and element.value:
+        wave = f"DC {element.value!r} {wave}"
+    if text.ac:
+        wave = f"{wave} AC 1"
+    (circuit.V if element.kind is Kind.VSOURCE else circuit.I)(text.name, text.plus, text.minus, wave)
+
+
+FAMILY = Family(
+    (
+        DeviceKind(
+            Kind.VSOURCE,
+            "V",
+            2,
+            "voltage",
+            role=Role.VSOURCE,
+            branch_current=True,
+            law=vsource_law,
+            stamp=vsource_stamp,
+            spice=write_source,
+        ),
+        DeviceKind(
+            Kind.ISOURCE,
+            "I",
+            2,
+            "current",
+            role=Role.ISOURCE,
+            law=isource_law,
+            stamp=isource_stamp,
+            spice=write_source,
+        ),
+    )
+)
