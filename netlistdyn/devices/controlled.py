@@ -7,7 +7,62 @@ from typing import Any
 
 from netlistdyn.base.errors import NetlistError
 from netlistdyn.circuit.netlist import GROUND, Element, Kind
+from netlistdyn.devices.behavioural import build_behavioural, expression_after, poly_expression
+from netlistdyn.devices.cards import CardContext, CardLine, canonical_node, split_keywords
 from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+
+#: Source forms of E, G, F and H that are not supported.
+_NONLINEAR_KEYWORDS = ("table", "laplace", "freq", "tablea", "chebyshev")
+
+
+def build_controlled(line: CardLine, ctx: CardContext) -> list[Element]:
+    """``E``/``G name n+ n- c+ c- gain``, ``F``/``H name n+ n- Vcontrol gain``, or their ``POLY(n)``
+    and ``value=`` forms (:mod:`netlistdyn.devices.behavioural`)."""
+    name = line.text.split(None, 1)[0]
+    letter = name[0].lower()
+    loc = line.loc
+    values = ctx.values
+    fields = ctx.fields(line)
+    if len(fields) > 3 and fields[3].lower() == "poly":
+        mode = "v" if letter in "eh" else "i"
+        return build_behavioural(line, mode, poly_expression(fields, letter, values, loc), ctx)
+    if letter in "eg":
+        if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
+            raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
+        found = expression_after(line, ("value", "vol", "cur"), ctx)
+        if found is not None:
+            key, expr = found
+            if (letter == "e" and key == "cur") or (letter == "g" and key == "vol"):
+                raise NetlistError(f"{name}: {key}= does not belong to a {letter.upper()} source", loc)
+            return build_behavioural(line, "v" if letter == "e" else "i", expr, ctx)
+        kind = Kind.VCVS if letter == "e" else Kind.VCCS
+        if len(fields) < 5:
+            raise NetlistError(f"{name}: expected 4 nodes, got {len(fields) - 1}", loc)
+        n = tuple(canonical_node(x) for x in fields[1:5])
+        positional, keywords = split_keywords(fields, 5, name, loc)
+        if len(positional) != 1 or keywords:
+            extra = positional[1] if len(positional) > 1 else next(iter(keywords), "gain")
+            raise NetlistError(f"{name}: expected one gain, got {extra!r}", loc)
+        gain = values.number(positional[0], loc, name)
+        return [Element(kind, name, n[:2], gain, loc, control_nodes=(n[2], n[3]))]
+    kind = Kind.CCCS if letter == "f" else Kind.CCVS
+    if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
+        raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
+    if len(fields) < 4:
+        raise NetlistError(f"{name}: missing controlling voltage source", loc)
+    if len(fields) != 5:
+        raise NetlistError(f"{name}: expected {name} n+ n- Vcontrol gain", loc)
+    gain = values.number(fields[4], loc, name)
+    return [
+        Element(
+            kind,
+            name,
+            (canonical_node(fields[1]), canonical_node(fields[2])),
+            gain,
+            loc,
+            control_source=fields[3].lower(),
+        )
+    ]
 
 
 def voltage_controlled_law(
@@ -144,5 +199,6 @@ FAMILY = Family(
             stamp=ccvs_stamp,
             spice=write_ccvs,
         ),
-    )
+    ),
+    {"e": build_controlled, "g": build_controlled, "f": build_controlled, "h": build_controlled},
 )

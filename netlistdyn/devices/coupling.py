@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from typing import Any
 
@@ -9,7 +10,32 @@ import numpy as np
 
 from netlistdyn.base.errors import NetlistError
 from netlistdyn.circuit.netlist import Element, Kind
+from netlistdyn.devices.cards import CardContext, CardLine
 from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, SpiceText
+
+
+def build_coupling(line: CardLine, ctx: CardContext) -> list[Element]:
+    """``K name L1 L2 k`` (LTspice: ``K name L1 L2 L3 ... k`` couples every pair with k)."""
+    name = line.text.split(None, 1)[0]
+    loc = line.loc
+    fields = ctx.fields(line)
+    if len(fields) < 4:
+        raise NetlistError(f"{name}: expected K name L1 L2 k", loc)
+    k = ctx.values.number(fields[-1], loc, name)
+    if not 0 < abs(k) < 1:
+        raise NetlistError(
+            f"{name}: coupling coefficient must satisfy 0 < |k| < 1, got {k:g}"
+            + (" (perfect coupling is an ideal transformer; use k < 1)" if abs(k) == 1 else ""),
+            loc,
+        )
+    inductors = [f.lower() for f in fields[1:-1]]
+    # LTspice: "K1 L1 L2 L3 k" couples every pair with k (ngspice 39 takes two inductors).
+    pairs = list(itertools.combinations(inductors, 2))
+    labels = [name] + [f"{name}.{a}.{b}" for a, b in pairs[1:]]
+    return [
+        Element(Kind.COUPLING, label, (), k, loc, coupled=pair)
+        for label, pair in zip(labels, pairs, strict=True)
+    ]
 
 
 def coupling_law(
@@ -52,5 +78,6 @@ FAMILY = Family(
             stamp=coupling_stamp,
             spice=write_coupling,
         ),
-    )
+    ),
+    {"k": build_coupling},
 )

@@ -27,6 +27,7 @@ from netlistdyn.devices import (
     storage,
     transformer,
 )
+from netlistdyn.devices.cards import CardBuilder
 from netlistdyn.devices.traits import DeviceKind, Family
 
 
@@ -38,24 +39,36 @@ class Registry:
     ----------
     kinds : mapping
         ``Kind`` (or a test's own tag) → :class:`DeviceKind`.
+    cards : mapping
+        First letter of an element line (lower case) → its builder.
     """
 
     kinds: MappingProxyType[Any, DeviceKind]
+    cards: MappingProxyType[str, CardBuilder]
 
     @classmethod
     def of(cls, *families: Family) -> Registry:
-        """The registry of these families; a kind registered twice is an error."""
+        """The registry of these families; a kind or card letter registered twice is an error."""
         kinds: dict[Any, DeviceKind] = {}
+        cards: dict[str, CardBuilder] = {}
         for family in families:
             for record in family.devices:
                 if record.kind in kinds:
                     raise ValueError(f"device kind {record.kind} registered twice")
                 kinds[record.kind] = record
-        return cls(MappingProxyType(kinds))
+            for letter, build in family.cards.items():
+                if letter in cards:
+                    raise ValueError(f"card letter {letter!r} registered twice")
+                cards[letter] = build
+        return cls(MappingProxyType(kinds), MappingProxyType(cards))
 
     def with_family(self, family: Family) -> Registry:
-        """A new registry with ``family``'s kinds added (this one is unchanged)."""
-        return Registry.of(Family(tuple(self.kinds.values())), family)
+        """A new registry with ``family``'s kinds and cards added (this one is unchanged)."""
+        return Registry.of(Family(tuple(self.kinds.values()), dict(self.cards)), family)
+
+    def card(self, letter: str) -> CardBuilder | None:
+        """The builder of the element lines whose name starts with ``letter`` (None: no family reads them)."""
+        return self.cards.get(letter.lower())
 
     def __getitem__(self, kind: Any) -> DeviceKind:
         return self.kinds[kind]

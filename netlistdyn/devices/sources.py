@@ -3,10 +3,39 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
+from netlistdyn.base.errors import NetlistError
 from netlistdyn.circuit.netlist import Element, Kind
+from netlistdyn.devices.cards import CardContext, CardLine, canonical_node
 from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+
+
+def build_source(line: CardLine, ctx: CardContext) -> list[Element]:
+    """``V``/``I name n+ n- [DC] value [AC ...] [PULSE(...)|SIN(...)|...] [portnum n z0 z]``.
+
+    An S-parameter port's ``z0`` is a series resistor ``name.z0`` (a parallel one for ``I``).
+    """
+    name = line.text.split(None, 1)[0]
+    letter = name[0].lower()
+    loc = line.loc
+    fields = ctx.fields(line, keep_parens=True)
+    if len(fields) < 3 or "(" in fields[1:3] or ")" in fields[1:3]:
+        raise NetlistError(f"{name}: expected 2 nodes", loc)
+    kind = Kind.VSOURCE if letter == "v" else Kind.ISOURCE
+    nodes = (canonical_node(fields[1]), canonical_node(fields[2]))
+    dc, waveform, z0 = ctx.source(fields[3:], loc, name)
+    source = Element(kind, name, nodes, dc, loc, waveform=waveform)
+    if z0 is None:
+        return [source]
+    if kind is Kind.ISOURCE:
+        return [source, Element(Kind.RESISTOR, f"{name}.z0", nodes, z0, loc)]
+    inner = f"{name.lower()}.port"
+    return [
+        replace(source, nodes=(inner, nodes[1])),
+        Element(Kind.RESISTOR, f"{name}.z0", (nodes[0], inner), z0, loc),
+    ]
 
 
 def vsource_law(
@@ -72,5 +101,6 @@ FAMILY = Family(
             stamp=isource_stamp,
             spice=write_source,
         ),
-    )
+    ),
+    {"v": build_source, "i": build_source},
 )

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 from netlistdyn.circuit.netlist import Element, Kind
+from netlistdyn.devices.cards import CardBuilder
 
 
 class Role(enum.IntEnum):
@@ -211,12 +212,16 @@ class DeviceKind:
 
 @dataclass(frozen=True)
 class Family:
-    """What one device module registers: its kinds' records.
+    """What one device module registers: its kinds' records and its cards' syntax.
 
     Attributes
     ----------
     devices : tuple of DeviceKind
         One record per element kind of the family.
+    cards : mapping
+        The builder of each netlist line the family reads, by its first letter (lower case):
+        ``build(line, ctx)`` returns the line's elements (:mod:`netlistdyn.devices.cards`).
     """
 
     devices: tuple[DeviceKind, ...]
+    cards: Mapping[str, CardBuilder] = field(default_factory=dict)

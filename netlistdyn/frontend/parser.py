@@ -36,16 +36,13 @@ from netlistdyn.base.values import read_number
 from netlistdyn.circuit.expressions import (
     Expression,
     ExpressionError,
-    NonlinearError,
     evaluate,
-    linear_form,
     parse,
 )
 from netlistdyn.circuit.netlist import (
     GROUND,
     STORAGE_KINDS,
     Diagnostic,
-    DiodeModel,
     Element,
     InitialCondition,
     Kind,
@@ -54,7 +51,10 @@ from netlistdyn.circuit.netlist import (
     TranSpec,
 )
 from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
+from netlistdyn.devices.behavioural import nonlinear_behavioural
+from netlistdyn.devices.cards import canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, build_mechanical, resolve_rods
+from netlistdyn.devices.registry import REGISTRY, Registry
 
 #: Default limit on the number of elements after subcircuit expansion; raise it
 #: with ``parse_text/parse_file(..., max_elements=N)`` or the environment
@@ -441,26 +441,6 @@ def _fields(line: Line, keep_parens: bool = False) -> list[str]:
         raise NetlistError(f"{name}: {exc} (ngspice refuses it too)", line.loc) from None
 
 
-def _node(name: str) -> str:
-    low = name.lower()
-    return GROUND if low in ("0", "gnd") else low
-
-
-def _short(text: str, limit: int = 40) -> str:
-    """``text`` cut to ``limit`` characters for a one-line message."""
-    return text if len(text) <= limit else f"{text[: limit - 3]}..."
-
-
-def _is_expr(token: str) -> bool:
-    return bool(token) and token[0] in "{'"
-
-
-def _unwrap(token: str) -> str:
-    if len(token) >= 2 and ((token[0] == "{" and token[-1] == "}") or (token[0] == "'" and token[-1] == "'")):
-        return token[1:-1]
-    return token
-
-
 # --------------------------------------------------------------------------------------------
 # Parameters
 
@@ -525,7 +505,7 @@ _NUMBER_START = frozenset("0123456789.+-")
 
 
 def _value_expression(expr: str) -> str:
-    return _unwrap(expr.strip())
+    return unwrap(expr.strip())
 
 
 def evaluate_definitions(
@@ -675,9 +655,9 @@ class _Values:
         return _Values(params, self.functions, self.warnings)
 
     def number(self, token: str, loc: SourceLocation, what: str) -> float:
-        if _is_expr(token):
+        if is_expr(token):
             try:
-                value = evaluate(_unwrap(token), self.params, self.functions)
+                value = evaluate(unwrap(token), self.params, self.functions)
             except ExpressionError as exc:
                 raise NetlistError(f"{what}: {exc}", loc) from None
         else:
@@ -686,16 +666,16 @@ class _Values:
                 low = token.lower()
                 if low in self.params:  # ngspice 39 accepts a bare parameter name as a value
                     return self.params[low]
-                raise NetlistError(f"{what}: expected a number, got {_short(token)!r}", loc)
+                raise NetlistError(f"{what}: expected a number, got {short(token)!r}", loc)
             if reading.note:
                 self.warnings.append(Diagnostic(loc, f"{what}: {reading.note}"))
             value = reading.value
         if not math.isfinite(value):
-            raise NetlistError(f"{what}: value is not finite ({_short(token)} is out of range)", loc)
+            raise NetlistError(f"{what}: value is not finite ({short(token)} is out of range)", loc)
         return value
 
     def is_value(self, token: str) -> bool:
-        return _is_expr(token) or read_number(token) is not None or token.lower() in self.params
+        return is_expr(token) or read_number(token) is not None or token.lower() in self.params
 
 
 # --------------------------------------------------------------------------------------------
@@ -704,7 +684,7 @@ class _Values:
 
 @dataclass
 class _Context:
-    """What element builders need besides the line."""
+    """What element builders need besides the line (:class:`~netlistdyn.devices.cards.CardContext`)."""
 
     values: _Values
     warnings: list[Diagnostic]
@@ -712,242 +692,18 @@ class _Context:
     temp: float | None
     tran: TranSpec | None
     tnom: float = 27.0
+    devices: Registry = REGISTRY
 
+    def fields(self, line: Line, keep_parens: bool = False) -> list[str]:
+        return _fields(line, keep_parens)
 
-def _split_keywords(
-    fields: list[str], start: int, name: str, loc: SourceLocation
-) -> tuple[list[str], dict[str, str]]:
-    """Positional fields and ``key=value`` pairs after index ``start``."""
-    positional: list[str] = []
-    keywords: dict[str, str] = {}
-    i = start
-    while i < len(fields):
-        if i + 1 < len(fields) and fields[i + 1] == "=":
-            if i + 2 >= len(fields):
-                raise NetlistError(f"{name}: {fields[i]}= has no value", loc)
-            key = fields[i].lower()
-            if key in keywords:
-                raise NetlistError(f"{name}: {fields[i]}= given twice", loc)
-            keywords[key] = _braced_if_expression(fields[i + 2])
-            i += 3
-            continue
-        if fields[i] == "=":
-            raise NetlistError(f"{name}: '=' without a name", loc)
-        positional.append(fields[i])
-        i += 1
-    return positional, keywords
+    def split(self, text: str) -> list[str]:
+        return split_fields(text)
 
-
-def _braced_if_expression(token: str) -> str:
-    """A ``key=value`` value as ngspice's numparam reads it: ``R=VAL1+VAL2`` (no blanks) is the
-    expression ``{VAL1+VAL2}`` (measured: 5 with VAL1=2, VAL2=3), while a positional ``VAL1*VAL2``
-    stays an error, as in ngspice."""
-    if _is_expr(token) or read_number(token) is not None or not re.search(r"[-+*/^]", token[1:]):
-        return token
-    return "{" + token + "}"
-
-
-_PASSIVE = {
-    "r": (Kind.RESISTOR, ("r", "resistance", "value"), "resistance"),
-    "c": (Kind.CAPACITOR, ("c", "capacitance", "value"), "capacitance"),
-    "l": (Kind.INDUCTOR, ("l", "inductance", "value"), "inductance"),
-}
-# Keywords with no effect on the model: noise parameters, and LTspice's part ratings and
-# catalogue fields (voltage/current/power ratings, tolerance, manufacturer, part number).
-_RATINGS = {"mfg": "", "pn": "", "type": "", "pppkg": ""}
-_PASSIVE_IGNORED = {
-    "r": {"noisy": "", "kf": "", "af": "", "bv_max": "", "tol": "", "pwr": "", **_RATINGS},
-    "c": {"bv_max": "", "v": "", "irms": "", "rpeak": "", "tol": "", **_RATINGS},
-    "l": {"ipk": "", "rpeak": "", "irms": "", "tol": "", **_RATINGS},
-}
-_LTSPICE_PARASITICS = {"r": (), "c": ("rser", "lser", "rpar", "cpar"), "l": ("rser", "rpar", "cpar")}
-
-
-def _temperature_factor(
-    name: str, tc1: float, tc2: float, keywords: dict[str, str], ctx: _Context, loc: SourceLocation
-) -> float:
-    if not tc1 and not tc2:
-        return 1.0
-    nominal = ctx.tnom
-    temp = ctx.temp if ctx.temp is not None else 27.0
-    if "temp" in keywords:
-        temp = ctx.values.number(keywords["temp"], loc, f"{name} temp")
-    if "dtemp" in keywords:
-        temp = temp + ctx.values.number(keywords["dtemp"], loc, f"{name} dtemp")
-    dt = temp - nominal
-    return 1.0 + tc1 * dt + tc2 * dt * dt
-
-
-def _build_passive(line: Line, fields: list[str], ctx: _Context) -> list[Element]:
-    name = fields[0]
-    letter = name[0].lower()
-    loc = line.loc
-    kind, value_keys, quantity = _PASSIVE[letter]
-    if len(fields) < 3:
-        raise NetlistError(f"{name}: expected 2 nodes, got {len(fields) - 1}", loc)
-    nodes = (_node(fields[1]), _node(fields[2]))
-    positional, keywords = _split_keywords(fields, 3, name, loc)
-    if letter in "cl":
-        storage = _nonlinear_storage(name, letter, nodes, positional, keywords, ctx, loc)
-        if storage is not None:
-            return [storage]
-    values = ctx.values
-    value: float | None = None
-    model: tuple[str, dict[str, str], SourceLocation] | None = None
-    for token in positional:
-        if value is None and values.is_value(token):
-            value = values.number(token, loc, name)
-        elif model is None and token.lower() in ctx.models:
-            model = ctx.models[token.lower()]
-            mtype = model[0]
-            if mtype[0] != letter and not (letter == "r" and mtype == "res"):
-                raise NetlistError(
-                    f"{name}: model {token} is a {mtype.upper()} model, not {letter.upper()}", loc
-                )
-        else:
-            raise NetlistError(f"{name}: unexpected field {token!r} (ngspice refuses it too)", loc)
-    for key in value_keys:
-        if key in keywords:
-            if value is not None:
-                raise NetlistError(f"{name}: the {quantity} is given twice", loc)
-            value = values.number(keywords.pop(key), loc, name)
-    mult = values.number(keywords.pop("m"), loc, f"{name} m") if "m" in keywords else 1.0
-    if mult <= 0:
-        raise NetlistError(f"{name}: m= must be positive, got {mult:g}", loc)
-    ic = values.number(keywords.pop("ic"), loc, f"{name} IC") if letter in "cl" and "ic" in keywords else None
-    tc1 = values.number(keywords.pop("tc1"), loc, f"{name} tc1") if "tc1" in keywords else 0.0
-    tc2 = values.number(keywords.pop("tc2"), loc, f"{name} tc2") if "tc2" in keywords else 0.0
-    ac_value = (
-        values.number(keywords.pop("ac"), loc, f"{name} ac") if letter == "r" and "ac" in keywords else None
-    )
-    length = values.number(keywords.pop("l"), loc, f"{name} l") if letter == "r" and "l" in keywords else None
-    width = values.number(keywords.pop("w"), loc, f"{name} w") if letter == "r" and "w" in keywords else None
-    parasitics = {k: keywords.pop(k) for k in _LTSPICE_PARASITICS[letter] if k in keywords}
-    for key in _PASSIVE_IGNORED[letter]:  # no effect on the model
-        keywords.pop(key, None)
-    temp_keys = {k: keywords.pop(k) for k in ("temp", "dtemp") if k in keywords}
-    if keywords:
-        key = next(iter(keywords))
-        raise NetlistError(f"{name}: unknown parameter {key}= on {quantity} element", loc)
-    if model is not None:
-        mparams = model[1]
-        tc1 = tc1 or (values.number(mparams["tc1"], model[2], "tc1") if "tc1" in mparams else 0.0)
-        tc2 = tc2 or (values.number(mparams["tc2"], model[2], "tc2") if "tc2" in mparams else 0.0)
-        if value is None and letter == "r" and "rsh" in mparams and length is not None:
-            rsh = values.number(mparams["rsh"], model[2], "rsh")
-            short = values.number(mparams["short"], model[2], "short") if "short" in mparams else 0.0
-            narrow = values.number(mparams["narrow"], model[2], "narrow") if "narrow" in mparams else 0.0
-            w = width if width is not None else values.number(mparams.get("defw", "10u"), model[2], "defw")
-            value = rsh * (length - short) / (w - narrow)
-        if value is None and letter == "r":
-            for key in ("r", "res"):
-                if key in mparams:
-                    value = values.number(mparams[key], model[2], f"model {key}")
-                    break
-        allowed = {"tc1", "tc2", "tnom", "bv_max"}
-        if letter == "r":
-            allowed |= {"r", "res", "rsh", "short", "narrow", "defw", "kf", "af", "noisy"}
-        unknown = sorted(set(mparams) - allowed)
-        if unknown:
-            raise NetlistError(f"{name}: model parameter {unknown[0]} is not supported", loc)
-        if "tnom" in mparams and (tc1 or tc2):
-            raise NetlistError(f"{name}: a model TNOM with temperature coefficients is not supported", loc)
-    elif length is not None or width is not None:
-        raise NetlistError(f"{name}: l=/w= need a resistor model with RSH", loc)
-    if value is None:
-        raise NetlistError(f"{name}: missing {quantity}", loc)
-    value *= _temperature_factor(name, tc1, tc2, temp_keys, ctx, loc)
-    value = value * mult if letter == "c" else value / mult
-    if ac_value is not None and ac_value != value:
-        ctx.warnings.append(
-            Diagnostic(
-                loc,
-                f"{name}: ac={ac_value:g} is used by ngspice only in .ac analysis; the model uses {value:g}",
-            )
-        )
-    element = Element(kind, name, nodes, value, loc, ic=ic)
-    _check_value(element, ctx.warnings)
-    if not parasitics:
-        return [element]
-    return _ltspice_parasitics(element, parasitics, ctx)
-
-
-def _reads_solution(token: str) -> bool:
-    """True when a value reads the circuit's solution (``v()``, ``i()``) or ``time``."""
-    try:
-        expr = parse(_unwrap(token))
-    except ExpressionError:
-        return False
-    return expr.refs or "time" in expr.names
-
-
-def _nonlinear_storage(
-    name: str,
-    letter: str,
-    nodes: tuple[str, str],
-    positional: list[str],
-    keywords: dict[str, str],
-    ctx: _Context,
-    loc: SourceLocation,
-) -> Element | None:
-    """ngspice's nonlinear ``C={expr}``, ``Q={expr}`` and ``L={expr}`` (None: an ordinary value)."""
-    key = "q" if letter == "c" and "q" in keywords else letter
-    text = keywords.get(key)
-    if any(_reads_solution(t) for t in positional):
-        raise NetlistError(
-            f"{name}: a value that reads v(), i() or time is written {letter.upper()}={{...}}"
-            + (" or Q={...}" if letter == "c" else ""),
-            loc,
-        )
-    if key != "q" and (text is None or not _reads_solution(text)):
-        return None
-    assert text is not None
-    others = sorted(set(keywords) - {key})
-    if others or positional:
-        what = f"{others[0]}=" if others else repr(positional[0])
-        raise NetlistError(f"{name}: {what} beside a nonlinear {key.upper()}= is not supported", loc)
-    from netlistdyn.devices.models import Behaviour, fold
-
-    try:
-        folded = fold(_unwrap(text), ctx.values.params, ctx.values.functions)
-        Behaviour.from_text(folded)
-    except ExpressionError as exc:
-        raise NetlistError(f"{name}: {exc}", loc) from None
-    kind = {"c": Kind.CAPACITANCE, "q": Kind.CHARGE, "l": Kind.INDUCTANCE}[key]
-    return Element(kind, name, nodes, 1.0, loc, expression=folded)
-
-
-def _ltspice_parasitics(element: Element, parasitics: dict[str, str], ctx: _Context) -> list[Element]:
-    """LTspice ``Rser=``/``Lser=`` in series and ``Rpar=``/``Cpar=`` across the whole element."""
-    loc = element.loc
-    name = element.name
-    vals = {k: ctx.values.number(v, loc, f"{name} {k}") for k, v in parasitics.items()}
-    plus, minus = element.nodes
-    out: list[Element] = []
-    series = [(Kind.RESISTOR, "Rser", vals["rser"])] if vals.get("rser") else []
-    if vals.get("lser"):
-        series.append((Kind.INDUCTOR, "Lser", vals["lser"]))
-    node = minus
-    inner_nodes = [f"{element.key}.{label.lower()}" for _, label, _ in series]
-    main_minus = inner_nodes[0] if inner_nodes else minus
-    out.append(replace(element, nodes=(plus, main_minus)))
-    for k, (kind, label, value) in enumerate(series):
-        node = inner_nodes[k + 1] if k + 1 < len(inner_nodes) else minus
-        out.append(Element(kind, f"{name}.{label}", (inner_nodes[k], node), value, loc))
-    if vals.get("rpar"):
-        out.append(Element(Kind.RESISTOR, f"{name}.Rpar", (plus, minus), vals["rpar"], loc))
-    if vals.get("cpar"):
-        out.append(Element(Kind.CAPACITOR, f"{name}.Cpar", (plus, minus), vals["cpar"], loc))
-    for extra in out[1:]:
-        _check_value(extra, ctx.warnings)
-    return out
-
-
-def _check_value(element: Element, warnings: list[Diagnostic]) -> None:
-    if element.value == 0:
-        raise NetlistError(f"{element.label}: value is zero", element.loc)
-    if element.value < 0:
-        warnings.append(Diagnostic(element.loc, f"{element.label} has a negative value ({element.value:g})"))
+    def source(
+        self, fields: list[str], loc: SourceLocation, name: str
+    ) -> tuple[float, Waveform | None, float | None]:
+        return _parse_source(_waveform_parens_only(fields), loc, self, name)
 
 
 def _waveform_parens_only(fields: list[str]) -> list[str]:
@@ -1156,7 +912,7 @@ def _make_pwl(
     if "file" in keywords:
         if args:
             raise NetlistError(f"{name}: PWL with both FILE= and points", loc)
-        target = Path(loc.path).parent / _quoted_name(_unwrap(keywords.pop("file")))
+        target = Path(loc.path).parent / _quoted_name(unwrap(keywords.pop("file")))
         text = read_source(target, loc, "PWL file")
         numbers: list[float] = []
         for word in re.split(r"[\s,;]+", text.strip()):
@@ -1205,207 +961,6 @@ def _make_pwl(
     return Pwl(tuple(times), tuple(levels))
 
 
-_NONLINEAR_KEYWORDS = ("table", "laplace", "freq", "tablea", "chebyshev")
-
-
-def _poly_expression(fields: list[str], letter: str, values: _Values, loc: SourceLocation) -> str:
-    """The SPICE2 polynomial ``POLY(n) controls p0 p1 ...`` of an E/G/F/H line as an expression.
-
-    The controls are n node pairs (E, G) or n voltage sources (F, H); the coefficients follow
-    SPICE's order: p0, the n first-order terms, then every product of two controls
-    (x1², x1·x2, ..., x2², ...), of three, and so on. A single coefficient is the constant p0, as
-    ngspice 39 reads it (measured: ``POLY(1) a 0 2`` gives 2 V; SPICE2 read it as the gain p1).
-    A first-order polynomial is compiled as controlled sources (its constant p0 as a model input);
-    a higher one is a nonlinear expression.
-    """
-    name = fields[0]
-    if len(fields) < 5:
-        raise NetlistError(f"{name}: POLY needs a dimension, controls and coefficients", loc)
-    dims = values.number(fields[4], loc, f"{name} POLY")
-    if dims != int(dims) or not 1 <= dims <= 20:
-        raise NetlistError(f"{name}: POLY({fields[4]}): the dimension must be a whole number 1..20", loc)
-    n = int(dims)
-    per = 2 if letter in "eg" else 1
-    controls = fields[5 : 5 + per * n]
-    coefficients = fields[5 + per * n :]
-    if len(controls) < per * n or not coefficients:
-        raise NetlistError(
-            f"{name}: POLY({n}) needs {per * n} control {'nodes' if per == 2 else 'sources'} "
-            "and at least one coefficient",
-            loc,
-        )
-    if letter in "eg":
-        xs = [f"v({_node(controls[2 * k])},{_node(controls[2 * k + 1])})" for k in range(n)]
-    else:
-        xs = [f"i({controls[k]})" for k in range(n)]
-    coeffs = [values.number(c, loc, f"{name} POLY coefficient") for c in coefficients]
-    terms: list[str] = []
-    order, index = 0, 0
-    while index < len(coeffs):
-        for combo in itertools.combinations_with_replacement(range(n), order):
-            if index == len(coeffs):
-                break
-            if coeffs[index] != 0:
-                terms.append("*".join([f"({coeffs[index]!r})", *(xs[k] for k in combo)]))
-            index += 1
-        order += 1
-    return " + ".join(terms) or "0"
-
-
-def _expression_after(line: Line, keys: tuple[str, ...]) -> tuple[str, str] | None:
-    """The raw ``key=expression`` of a behavioural source (rest of the line)."""
-    match = re.search(r"(?i)\b(" + "|".join(keys) + r")\s*=\s*", line.text)
-    if match is None:
-        return None
-    rest = line.text[match.end() :].strip()
-    if not rest:
-        raise NetlistError(f"{line.text.split()[0]}: {match.group(1)}= has no expression", line.loc)
-    expr = rest
-    if rest[0] in "{'":
-        try:
-            first = split_fields(rest)[0]
-        except ValueError as exc:
-            raise NetlistError(f"{line.text.split()[0]}: {exc} (ngspice refuses it too)", line.loc) from None
-        expr = first
-        tail = rest[len(first) :].strip()
-        if tail:
-            raise NetlistError(f"{line.text.split()[0]}: unexpected {tail!r} after the expression", line.loc)
-    return match.group(1).lower(), _unwrap(expr)
-
-
-def _build_behavioural(line: Line, kind_letter: str, mode: str, expr: str, ctx: _Context) -> list[Element]:
-    """A linear behavioural source as a sum of controlled sources.
-
-    ``mode`` is ``"v"`` (a voltage: series chain of VCVS/CCVS through
-    internal nodes ``name.n1``, ...) or ``"i"`` (a current: parallel
-    VCCS/CCCS). A constant term becomes an independent source (an input of
-    the model, named ``name.dc``).
-    """
-    fields = line.text.split()
-    name = fields[0]
-    loc = line.loc
-    if len(fields) < 3:
-        raise NetlistError(f"{name}: expected 2 nodes", loc)
-    plus, minus = _node(fields[1]), _node(fields[2])
-    try:
-        form = linear_form(expr, ctx.values.params, ctx.values.functions)
-    except NonlinearError:
-        return [_nonlinear_behavioural(name, plus, minus, mode, expr, ctx, loc)]
-    except ExpressionError as exc:
-        raise NetlistError(f"{name}: {exc}", loc) from None
-    terms: list[tuple[Kind, float, tuple[str, str] | None, str | None]] = []
-    for (what, ref), coeff in form.terms:
-        if what == "v":
-            terms.append((Kind.VCVS if mode == "v" else Kind.VCCS, coeff, (_node(ref), GROUND), None))
-        else:
-            terms.append((Kind.CCVS if mode == "v" else Kind.CCCS, coeff, None, ref))
-    constant = form.const
-    if not terms and constant == 0:
-        raise NetlistError(f"{name}: the expression is identically zero", loc)
-    labels = [name] + [f"{name}.t{k}" for k in range(2, len(terms) + 1)]
-    pieces: list[tuple[Kind, str, float, tuple[str, str] | None, str | None, Waveform | None]] = [
-        (kind, label, coeff, cnodes, csource, None)
-        for (kind, coeff, cnodes, csource), label in zip(terms, labels, strict=False)
-    ]
-    if constant != 0:
-        source_kind = Kind.VSOURCE if mode == "v" else Kind.ISOURCE
-        label = name if not pieces else f"{name}.dc"
-        pieces.append((source_kind, label, constant, None, None, None))
-        ctx.warnings.append(
-            Diagnostic(
-                loc,
-                f"{name}: the constant term {constant:g} of its expression is a model input ({label})",
-            )
-        )
-    if mode == "v":  # voltage pieces in series through internal nodes
-        key = name.lower()
-        chain = [plus] + [f"{key}.n{k}" for k in range(1, len(pieces))] + [minus]
-        ends = list(itertools.pairwise(chain))
-    else:  # current pieces in parallel
-        ends = [(plus, minus)] * len(pieces)
-    return [
-        Element(
-            kind,
-            label,
-            nodes,
-            coeff,
-            loc,
-            control_nodes=cnodes,
-            control_source=csource,
-            waveform=wave,
-            expression=expr,
-        )
-        for (kind, label, coeff, cnodes, csource, wave), nodes in zip(pieces, ends, strict=True)
-    ]
-
-
-def _nonlinear_behavioural(
-    name: str, plus: str, minus: str, mode: str, expr: str, ctx: _Context, loc: SourceLocation
-) -> Element:
-    """A behavioural source whose expression is not linear: one element with the folded expression."""
-    from netlistdyn.devices.models import Behaviour, fold
-
-    try:
-        folded = fold(expr, ctx.values.params, ctx.values.functions)
-        Behaviour.from_text(folded)
-    except ExpressionError as exc:
-        raise NetlistError(f"{name}: {exc}", loc) from None
-    kind = Kind.BVOLTAGE if mode == "v" else Kind.BCURRENT
-    return Element(kind, name, (plus, minus), 0.0, loc, expression=folded)
-
-
-def _build_diode(line: Line, ctx: _Context) -> Element:
-    """``Dname anode cathode model [area] [area=] [m=]`` with a ``.model NAME D(...)``."""
-    from netlistdyn.devices.models import DIODE_NEUTRAL, DIODE_PARAMS
-
-    fields = _fields(line)
-    name, loc = fields[0], line.loc
-    if len(fields) < 4:
-        raise NetlistError(f"{name}: expected {name} anode cathode model [area]", loc)
-    nodes = (_node(fields[1]), _node(fields[2]))
-    positional, keywords = _split_keywords(fields, 4, name, loc)
-    mname = fields[3].lower()
-    if mname not in ctx.models:
-        raise NetlistError(f"{name}: no .model {fields[3]}", loc)
-    mtype, mparams, mloc = ctx.models[mname]
-    if mtype != "d":
-        raise NetlistError(f"{name}: model {fields[3]} is a {mtype.upper()} model, not D", loc)
-    values = ctx.values
-    area = 1.0
-    if positional:
-        if len(positional) > 1 or positional[0].lower() == "off":
-            raise NetlistError(f"{name}: unexpected field {positional[-1]!r} (expected an area)", loc)
-        area = values.number(positional[0], loc, f"{name} area")
-    if "area" in keywords:
-        area = values.number(keywords.pop("area"), loc, f"{name} area")
-    if "m" in keywords:
-        area *= values.number(keywords.pop("m"), loc, f"{name} m")
-    if keywords:
-        raise NetlistError(f"{name}: unsupported parameter {next(iter(keywords))}= on a diode", loc)
-    if not area > 0:
-        raise NetlistError(f"{name}: the area must be positive, got {area:g}", loc)
-    if (ctx.temp is not None and ctx.temp != 27.0) or ctx.tnom != 27.0:
-        raise NetlistError(f"{name}: diodes are modelled at 27 °C only (TEMP = TNOM = 27)", loc)
-    given: dict[str, float] = {}
-    for key, text in mparams.items():
-        what = f".model {mname} {key.upper()}"
-        if key in DIODE_PARAMS:
-            given[DIODE_PARAMS[key]] = values.number(text, mloc, what)
-        elif key in DIODE_NEUTRAL:
-            if values.number(text, mloc, what) != DIODE_NEUTRAL[key]:
-                raise NetlistError(f"{what}: only the default {DIODE_NEUTRAL[key]:g} is supported", mloc)
-        else:
-            raise NetlistError(
-                f"{what}: parameter not supported (netlistdyn reads IS N RS CJO VJ M TT FC)", mloc
-            )
-    model = DiodeModel(mname, **given)
-    if not (model.IS > 0 and model.N > 0 and model.RS >= 0 and model.CJO >= 0 and model.TT >= 0):
-        raise NetlistError(f".model {mname}: IS and N must be positive, RS, CJO and TT not negative", mloc)
-    if model.CJO > 0 and not (model.VJ > 0 and 0 < model.M < 1 and 0 <= model.FC < 1):
-        raise NetlistError(f".model {mname}: needs VJ > 0, 0 < M < 1 and 0 <= FC < 1", mloc)
-    return Element(Kind.DIODE, name, nodes, area, loc, diode=model)
-
-
 def _build_element(line: Line, ctx: _Context) -> list[Element]:
     word = line.text.split(None, 1)[0]
     letter = word[0].lower()
@@ -1414,14 +969,14 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
     name = word
     if word.lower() in KEYWORDS:
         fields = _fields(line)
-        if word.lower() in ("force", "torque") and len(fields) == 5 and _is_expr(fields[4]):
+        if word.lower() in ("force", "torque") and len(fields) == 5 and is_expr(fields[4]):
             from netlistdyn.devices.models import mechanical_expression
 
             if mechanical_expression(fields[4]):
                 # a force of the motion, FORCE name a b {expr}: pushes a (current from b into a)
-                a, b = _node(fields[2]), _node(fields[3])
-                element = _nonlinear_behavioural(
-                    f"{word.upper()} {fields[1]}", b, a, "i", _unwrap(fields[4]), ctx, loc
+                a, b = canonical_node(fields[2]), canonical_node(fields[3])
+                element = nonlinear_behavioural(
+                    f"{word.upper()} {fields[1]}", b, a, "i", unwrap(fields[4]), ctx, loc
                 )
                 return [replace(element, name=fields[1], keyword=word.upper())]
         return [
@@ -1430,97 +985,14 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
                 fields[1:],
                 loc,
                 lambda token, what: values.number(token, loc, what),
-                _node,
+                canonical_node,
                 lambda tokens, what: _parse_source(list(tokens), loc, ctx, what)[:2],
                 ctx.warnings,
             )
         ]
-    if letter in "rlc":
-        return _build_passive(line, _fields(line), ctx)
-    if letter in "vi":
-        fields = _fields(line, keep_parens=True)
-        if len(fields) < 3 or "(" in fields[1:3] or ")" in fields[1:3]:
-            raise NetlistError(f"{name}: expected 2 nodes", loc)
-        kind = Kind.VSOURCE if letter == "v" else Kind.ISOURCE
-        nodes = (_node(fields[1]), _node(fields[2]))
-        dc, waveform, z0 = _parse_source(_waveform_parens_only(fields[3:]), loc, ctx, name)
-        source = Element(kind, name, nodes, dc, loc, waveform=waveform)
-        if z0 is None:
-            return [source]
-        if kind is Kind.ISOURCE:
-            return [source, Element(Kind.RESISTOR, f"{name}.z0", nodes, z0, loc)]
-        inner = f"{name.lower()}.port"
-        return [
-            replace(source, nodes=(inner, nodes[1])),
-            Element(Kind.RESISTOR, f"{name}.z0", (nodes[0], inner), z0, loc),
-        ]
-    if letter == "b":
-        found = _expression_after(line, ("v", "i"))
-        if found is None:
-            raise NetlistError(f"{name}: expected V={{expression}} or I={{expression}}", loc)
-        mode, expr = found
-        return _build_behavioural(line, "b", mode, expr, ctx)
-    if letter in "efgh":
-        fields = _fields(line)
-        if len(fields) > 3 and fields[3].lower() == "poly":
-            mode = "v" if letter in "eh" else "i"
-            return _build_behavioural(line, letter, mode, _poly_expression(fields, letter, values, loc), ctx)
-    if letter in "eg":
-        fields = _fields(line)
-        if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
-            raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
-        found = _expression_after(line, ("value", "vol", "cur"))
-        if found is not None:
-            key, expr = found
-            if (letter == "e" and key == "cur") or (letter == "g" and key == "vol"):
-                raise NetlistError(f"{name}: {key}= does not belong to a {letter.upper()} source", loc)
-            return _build_behavioural(line, letter, "v" if letter == "e" else "i", expr, ctx)
-        kind = Kind.VCVS if letter == "e" else Kind.VCCS
-        if len(fields) < 5:
-            raise NetlistError(f"{name}: expected 4 nodes, got {len(fields) - 1}", loc)
-        n = tuple(_node(x) for x in fields[1:5])
-        positional, keywords = _split_keywords(fields, 5, name, loc)
-        if len(positional) != 1 or keywords:
-            extra = positional[1] if len(positional) > 1 else next(iter(keywords), "gain")
-            raise NetlistError(f"{name}: expected one gain, got {extra!r}", loc)
-        gain = values.number(positional[0], loc, name)
-        return [Element(kind, name, n[:2], gain, loc, control_nodes=(n[2], n[3]))]
-    if letter in "fh":
-        fields = _fields(line)
-        kind = Kind.CCCS if letter == "f" else Kind.CCVS
-        if len(fields) > 3 and fields[3].lower() in _NONLINEAR_KEYWORDS:
-            raise NetlistError(f"{name}: {fields[3].upper()} sources are not supported", loc)
-        if len(fields) < 4:
-            raise NetlistError(f"{name}: missing controlling voltage source", loc)
-        if len(fields) != 5:
-            raise NetlistError(f"{name}: expected {name} n+ n- Vcontrol gain", loc)
-        gain = values.number(fields[4], loc, name)
-        return [
-            Element(
-                kind, name, (_node(fields[1]), _node(fields[2])), gain, loc, control_source=fields[3].lower()
-            )
-        ]
-    if letter == "k":
-        fields = _fields(line)
-        if len(fields) < 4:
-            raise NetlistError(f"{name}: expected K name L1 L2 k", loc)
-        k = values.number(fields[-1], loc, name)
-        if not 0 < abs(k) < 1:
-            raise NetlistError(
-                f"{name}: coupling coefficient must satisfy 0 < |k| < 1, got {k:g}"
-                + (" (perfect coupling is an ideal transformer; use k < 1)" if abs(k) == 1 else ""),
-                loc,
-            )
-        inductors = [f.lower() for f in fields[1:-1]]
-        # LTspice: "K1 L1 L2 L3 k" couples every pair with k (ngspice 39 takes two inductors).
-        pairs = list(itertools.combinations(inductors, 2))
-        labels = [name] + [f"{name}.{a}.{b}" for a, b in pairs[1:]]
-        return [
-            Element(Kind.COUPLING, label, (), k, loc, coupled=pair)
-            for label, pair in zip(labels, pairs, strict=True)
-        ]
-    if letter == "d":
-        return [_build_diode(line, ctx)]
+    build = ctx.devices.card(letter)
+    if build is not None:
+        return build(line, ctx)
     what = NONLINEAR_DEVICES.get(letter)
     if what:
         raise NetlistError(
@@ -1572,7 +1044,7 @@ def _parse_func(line: Line) -> tuple[str, tuple[str, ...], Expression]:
         raise NetlistError(".func: expected .func name(args) = {expression}", line.loc)
     formals = tuple(a.strip().lower() for a in match.group(2).split(",") if a.strip())
     try:
-        body = parse(_unwrap(match.group(3).strip()))
+        body = parse(unwrap(match.group(3).strip()))
     except ExpressionError as exc:
         raise NetlistError(f".func {match.group(1)}: {exc}", line.loc) from None
     return match.group(1).lower(), formals, body
@@ -1637,7 +1109,7 @@ def _parse_ic(line: Line, values: _Values) -> list[InitialCondition]:
     i = 0
     while i < len(fields):
         if fields[i].lower() == "v" and i + 3 < len(fields) and fields[i + 2] == "=":
-            node = _node(fields[i + 1])
+            node = canonical_node(fields[i + 1])
             out.append(InitialCondition(node, values.number(fields[i + 3], line.loc, ".ic"), line.loc))
             i += 4
             continue
@@ -1672,7 +1144,7 @@ def _resolve_conditionals(
                 try:
                     taken = bool(
                         evaluate(
-                            _unwrap(cond_text.strip("()").strip()) if cond_text else "", params, functions
+                            unwrap(cond_text.strip("()").strip()) if cond_text else "", params, functions
                         )
                     )
                 except ExpressionError as exc:
@@ -1732,7 +1204,7 @@ def _subckt_header(line: Line) -> tuple[str, tuple[str, ...], tuple[_Definition,
         and fields[i].lower() != "params:"
         and not (i + 1 < len(fields) and fields[i + 1] == "=")
     ):
-        ports.append(_node(fields[i]))
+        ports.append(canonical_node(fields[i]))
         i += 1
     defaults: tuple[_Definition, ...] = ()
     if i < len(fields):
@@ -1976,7 +1448,7 @@ def _expand_instance(
         local = evaluate_definitions(local_defs, base, values.functions, None)
         local.update(overrides)
         scope = ChainMap(local, values.params)  # type: ignore[arg-type]
-    outer = [_map_node(_node(n), prefix, port_map, build.globals_) for n in nodes]
+    outer = [_map_node(canonical_node(n), prefix, port_map, build.globals_) for n in nodes]
     inner_prefix = f"{prefix}.{name}" if prefix else name
     inner_ports = dict(zip(sub.ports, outer, strict=True))
     _expand_body(build, sub.body, values.scoped(scope), sub, inner_prefix, inner_ports, depth + 1)
@@ -2035,6 +1507,7 @@ def parse_text(
     path: str = "<string>",
     overrides: Mapping[str, float] | None = None,
     max_elements: int | None = None,
+    devices: Registry = REGISTRY,
 ) -> Netlist:
     """Parse netlist text.
 
@@ -2049,6 +1522,8 @@ def parse_text(
     max_elements : int, optional
         Refuse netlists whose subcircuits expand to more elements than this
         (default: ``$NETLISTDYN_MAX_ELEMENTS``, else :data:`MAX_ELEMENTS`).
+    devices : Registry
+        Where the builder of each element line is looked up, by the line's first letter.
 
     Returns
     -------
@@ -2121,7 +1596,7 @@ def parse_text(
         elif word == ".tran":
             tran = _parse_tran(line, values, warnings)
         elif word == ".global":
-            globals_.update(_node(n) for n in _fields(line)[1:])
+            globals_.update(canonical_node(n) for n in _fields(line)[1:])
         elif word == ".temp":
             got = _fields(line)[1:]
             if len(got) != 1:
@@ -2155,7 +1630,7 @@ def parse_text(
         else:
             raise NetlistError(f"unsupported directive {word}", line.loc)
     _count_elements(body, definitions, max_elements)
-    ctx = _Context(values, warnings, models, temp, tran, tnom)
+    ctx = _Context(values, warnings, models, temp, tran, tnom, devices)
     build = _Build(ctx, definitions, frozenset(globals_))
     _expand_body(build, body, values, None, "", {}, 0)
     elements = build.elements
