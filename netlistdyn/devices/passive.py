@@ -93,7 +93,7 @@ def build_passive(line: CardLine, ctx: CardContext) -> list[Element]:
     parasitics = {k: keywords.pop(k) for k in _LTSPICE_PARASITICS[letter] if k in keywords}
     for key in _PASSIVE_IGNORED[letter]:  # no effect on the model
         keywords.pop(key, None)
-    temp_keys = {k: keywords.pop(k) for k in ("temp", "dtemp") if k in keywords}
+    temp_keys: dict[str, str] = {k: keywords.pop(k) for k in ("temp", "dtemp") if k in keywords}
     if keywords:
         key = next(iter(keywords))
         raise NetlistError(f"{name}: unknown parameter {key}= on {quantity} element", loc)

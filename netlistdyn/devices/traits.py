@@ -174,7 +174,8 @@ class DeviceKind:
     Attributes
     ----------
     kind : Kind
-        The element class it describes (the data tag in :class:`~netlistdyn.circuit.netlist.Element`).
+        The element class it describes (the data tag in :class:`~netlistdyn.circuit.netlist.Element`;
+        any other enum member for a kind registered outside the package, as a test's).
     letter : str
         Its letter in an ngspice netlist (``R``; ``E`` for a transformer, written as an E and an F).
     nodes : int
@@ -197,7 +198,7 @@ class DeviceKind:
         How it is written for ngspice (:data:`Writer`).
     """
 
-    kind: Kind
+    kind: Kind | enum.Enum
     letter: str
     nodes: int
     value: str

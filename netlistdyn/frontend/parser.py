@@ -52,7 +52,7 @@ from netlistdyn.circuit.netlist import (
 )
 from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
 from netlistdyn.devices.behavioural import nonlinear_behavioural
-from netlistdyn.devices.cards import canonical_node, is_expr, short, unwrap
+from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, build_mechanical, resolve_rods
 from netlistdyn.devices.registry import REGISTRY, Registry
 
@@ -433,7 +433,7 @@ def tokenize(text: str) -> list[str]:
     return split_fields(text)
 
 
-def _fields(line: Line, keep_parens: bool = False) -> list[str]:
+def _fields(line: CardLine, keep_parens: bool = False) -> list[str]:
     try:
         return split_fields(line.text, keep_parens)
     except ValueError as exc:
@@ -694,7 +694,7 @@ class _Context:
     tnom: float = 27.0
     devices: Registry = REGISTRY
 
-    def fields(self, line: Line, keep_parens: bool = False) -> list[str]:
+    def fields(self, line: CardLine, keep_parens: bool = False) -> list[str]:
         return _fields(line, keep_parens)
 
     def split(self, text: str) -> list[str]:
