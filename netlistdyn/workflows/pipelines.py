@@ -11,7 +11,7 @@ import os
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import IO, Any
 
 import numpy as np
@@ -21,6 +21,7 @@ from netlistdyn.base.errors import UsageError
 from netlistdyn.base.values import parse_number
 from netlistdyn.circuit.netlist import Netlist
 from netlistdyn.simulation.foh import Horizon
+from netlistdyn.simulation.sampling import output_grid
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: A netlist as the API accepts it: a path, netlist text, or a file object.
@@ -221,6 +222,9 @@ class Simulation:
     start : str
         Where the transient started (:func:`netlistdyn.simulation.initial.transient_start`): the DC
         operating point, the ``UIC`` initial conditions, or the given initial state.
+    warnings : tuple of str
+        What the run found worth saying (``file:line: warning: ...``): an output grid refined or
+        too coarse for a mode or a pulse, an initial condition that does not apply.
     """
 
     title: str
@@ -237,6 +241,7 @@ class Simulation:
     stats: Mapping[str, float] = field(default_factory=dict)
     eigen: Any = field(default=None, repr=False)
     start: str = ""
+    warnings: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -353,14 +358,29 @@ def simulation_pipeline(
     # estimates serve, and the check on the circuit equations (extended precision; 15 CPU s of a
     # 0.2 s run on a 100-section ladder) is left to analyze, which reports the error bars.
     eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+    said: list[Any] = []
+
+    def say(note: Any) -> None:
+        said.append(note)
+        if warn is not None:
+            warn(note)
+
     horizon = choose_horizon(netlist, eig, tstop, tstep)
     check_horizon(horizon)
     count = round(horizon.tstop / horizon.tstep)
     if count > MAX_POINTS:
         raise UsageError(f"{count} output points: choose a larger --tstep")
-    times = np.linspace(0.0, horizon.tstop, count + 1)
     if method == "euler":  # the output times are the steps k·h up to tstop
         times = np.arange(int(horizon.tstop / horizon.tstep * (1 + 1e-12)) + 1) * horizon.tstep
+        shown = horizon
+    else:  # a grid that shows the fastest visible mode and every source corner (see sampling)
+        from_tran = tstop is None and tstep is None and netlist.tran is not None  # not the user's grid
+        grid = output_grid(netlist, model, horizon.tstep, horizon.tstop, from_tran, MAX_POINTS)
+        times = grid.times
+        shown = horizon if grid.step >= horizon.tstep else replace(horizon, tstep=grid.step)
+        for note in grid.warnings:
+            say(note)
+    # the sources' TSTEP-based defaults (a PULSE's TR, TF) follow .tran's step, not the output grid's
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     level = None
     how = "the given initial state"
@@ -377,17 +397,14 @@ def simulation_pipeline(
 
             start = transient_start(netlist, model, signals(np.array([0.0]))[0])
             x0, how = start.x0, start.how
-            if warn is not None:
-                for warning in start.warnings:
-                    warn(warning)
+            for warning in start.warnings:
+                say(warning)
             shifted = None if start.uic else around_equilibrium(model, signals, x0)
             if shifted is not None:  # from the operating point: its constant plus what moves
                 signals, level = shifted
                 x0 = None
         result = integrators.run(model, signals, times, method, rtol, atol, x0, force, progress, step)
         if level is not None:
-            from dataclasses import replace
-
             result = replace(result, outputs=result.outputs + level[None, :])
     return Simulation(
         title=netlist.title,
@@ -400,10 +417,11 @@ def simulation_pipeline(
         seconds=result.seconds,
         status=result.status,
         message=result.message,
-        horizon=horizon,
+        horizon=shown,
         stats=dict(result.stats),
         eigen=eig,
         start=how,
+        warnings=tuple(str(w) for w in said),
     )
 
 
