@@ -367,7 +367,8 @@ coordinates_option = click.option(
     default=None,
     metavar="VARS",
     help="Present the model in these variables, e.g. x(b1),x(b2),v(b1),v(b2) or "
-    "x(cart),angle(r1),omega(r1) (outputs that together determine the state).",
+    "x(cart),angle(r1),omega(r1) (outputs that together determine the state); 'voltage': "
+    "capacitor voltages and inductor currents (as SPICE users think), well scaled.",
 )
 
 

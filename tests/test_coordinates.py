@@ -404,3 +404,26 @@ def test_chain_of_blocks_in_positions_and_velocities(blocks) -> None:
     rows = np.abs(A).max(axis=1, keepdims=True) * np.ones_like(A)
     assert np.all(np.abs(change.model.A[~nonzero]) <= 1e-12 * rows[~nonzero])
     np.testing.assert_allclose(change.model.B, B, rtol=0, atol=CHAIN_RTOL * np.abs(B).max())
+
+
+def test_voltage_states_as_spice_users_think(tmp_path) -> None:
+    """``--coordinates voltage``: capacitor voltages and inductor currents. For the series RLC
+    (1 kΩ, 10 µH, 1 nF) the state equations are v' = i/C and i' = (V1 − R i − v)/L, closed forms
+    for every entry of A, B; the default outputs stay the node voltages."""
+    import numpy as np
+
+    import netlistdyn
+
+    path = tmp_path / "rlc.cir"
+    path.write_text("RLC\nV1 in 0 DC 1\nR1 in a 1k\nL1 a out 10u\nC1 out 0 1n\n.end\n")
+    model = netlistdyn.compile(path, coordinates="voltage")
+    assert model.states == ("v(out)", "i(L1)")
+    assert model.outputs == ("v(in)", "v(a)", "v(out)")
+    R, L, C = 1e3, 10e-6, 1e-9
+    # the change of variables is a diagonal scaling by C: one rounding per entry
+    np.testing.assert_allclose(model.A, [[0, 1 / C], [-1 / L, -R / L]], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(model.B, [[0], [1 / L]], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(model.C[2], [1, 0], rtol=1e-15, atol=0)
+    charges = netlistdyn.compile(path)
+    assert charges.states == ("q(C1)", "i(L1)")
+    assert np.abs(model.A).max() < 1e-4 * np.abs(charges.A).max()  # 1e9 against 1e14

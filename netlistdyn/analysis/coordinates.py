@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from netlistdyn.base.errors import UsageError
 from netlistdyn.base.values import parse_number
-from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
 from netlistdyn.circuit.probes import default_probes, parse_probe
 from netlistdyn.statespace.model import StateSpaceModel
 
@@ -752,6 +752,42 @@ class Prepared:
         return self.change.model if self.change is not None else select_outputs(self.full, self.shown)
 
 
+#: ``--coordinates voltage``: capacitor voltages and inductor currents, as SPICE users think of states.
+VOLTAGE_KEYWORDS = frozenset({"voltage", "voltages"})
+
+
+def voltage_coordinates(netlist: Netlist) -> list[str]:
+    """The compiled states with every charge replaced by its capacitor's voltage.
+
+    q(C) becomes ``v(a,b)`` (``v(a)`` when ``b`` is ground) and a mass's momentum p(m) its node's
+    velocity ``v(n)``; inductor currents, spring forces and displacements stay. A charge and its
+    voltage differ by the factor C, so A keeps its eigenvalues and loses the 1/C scaling that puts
+    −1e12 beside −1e4 in a µH/nF circuit.
+
+    Parameters
+    ----------
+    netlist : Netlist
+
+    Returns
+    -------
+    list of str
+        One variable per state, in state order.
+    """
+    from netlistdyn.formulation.compile import compile_netlist
+
+    by_name = {e.name.lower(): e for e in netlist.elements}
+    variables = []
+    for state in compile_netlist(netlist, []).states:
+        prefix, _, rest = state.partition("(")
+        element = by_name.get(rest[:-1].lower()) if prefix in ("q", "p") else None
+        if element is None:
+            variables.append(state)
+            continue
+        a, b = element.nodes[0], element.nodes[1]
+        variables.append(f"v({a})" if b == GROUND else (f"v({b})" if a == GROUND else f"v({a},{b})"))
+    return variables
+
+
 def prepare(
     netlist: Netlist,
     outputs: Sequence[str] | None = None,
@@ -777,6 +813,9 @@ def prepare(
     ------
     UsageError
     """
+    if isinstance(coordinates, str) and coordinates.strip().lower() in VOLTAGE_KEYWORDS:
+        coordinates = voltage_coordinates(netlist)
+        outputs = outputs or [p.name for p in default_probes(netlist)]  # the usual outputs, not the states
     if isinstance(coordinates, str):
         coordinates = split_list(coordinates)
     coords = [parse_variable(c, netlist) for c in coordinates or ()]

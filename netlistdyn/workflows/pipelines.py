@@ -370,6 +370,9 @@ def simulation_pipeline(
     count = round(horizon.tstop / horizon.tstep)
     if count > MAX_POINTS:
         raise UsageError(f"{count} output points: choose a larger --tstep")
+    # the sources' TSTEP-based defaults (a PULSE's TR, TF) follow .tran's step, not the output grid's;
+    # resolving them first also refuses a source with too many corners before any are listed
+    signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     if method == "euler":  # the output times are the steps k·h up to tstop
         times = np.arange(int(horizon.tstop / horizon.tstep * (1 + 1e-12)) + 1) * horizon.tstep
         shown = horizon
@@ -380,8 +383,6 @@ def simulation_pipeline(
         shown = horizon if grid.step >= horizon.tstep else replace(horizon, tstep=grid.step)
         for note in grid.warnings:
             say(note)
-    # the sources' TSTEP-based defaults (a PULSE's TR, TF) follow .tran's step, not the output grid's
-    signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     level = None
     how = "the given initial state"
     if netlist.is_nonlinear:  # the model is the linearisation: integrate the circuit itself
