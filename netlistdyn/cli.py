@@ -421,7 +421,7 @@ out_option = click.option(
 @path_option(
     "--bode",
     "Plot of the frequency response of every input/output pair over the netlist's .ac range "
-    "(PNG, or .svg/.pdf by extension).",
+    "(PNG, or .svg/.pdf by extension; .csv writes the data: Hz, rad/s, re, im, dB, phase).",
 )
 @path_option("--save", "Save the model as .json, .npz or .mat (with labels).")
 @coordinates_option
@@ -543,13 +543,24 @@ def analyze(
             from netlistdyn.io.exports import save_model
 
             save_model(model, save)
+        response = None
         if bode:
+            from netlistdyn.io.bode import bode as frequency_data
+            from netlistdyn.io.bode import bode_csv
             from netlistdyn.io.plots import ac_range, bode_plot
 
-            bode_plot(model, bode, ac_range(parsed))
+            response = frequency_data(model, ac_range(parsed))
+            if bode.lower().endswith(".csv"):
+                write_atomic(bode, bode_csv(response))
+            else:
+                bode_plot(model, bode, ac_range(parsed))
         if fmt == "json":
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist
+            if response is not None:
+                from netlistdyn.io.bode import bode_dict
+
+                doc["frequency_response"] = bode_dict(response)
             if control_report:
                 doc["control"] = control_dict(structure, tfs)
             if forms is not None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from netlistdyn.base.atomic import write_bytes
 from netlistdyn.base.errors import UsageError
+from netlistdyn.io.bode import bode
 
 
 def _figure() -> Any:
@@ -257,31 +258,16 @@ def bode_plot(model: Any, path: str, hz_range: tuple[float, float] | None = None
 
     The bottom axis is in Hz, the top one in rad/s. The range is
     ``hz_range`` (the netlist's ``.ac`` range) when given, else two decades
-    either side of the eigenvalue magnitudes.
+    either side of the eigenvalue magnitudes (see :func:`netlistdyn.io.bode.bode`).
     """
-    from netlistdyn.analysis.control import frequency_grid, frequency_response
-
-    if model.nstates > 400:
-        raise UsageError("--bode is for models of up to 400 states")
-    if hz_range is not None:
-        low, high = hz_range
-        omega = 2 * np.pi * np.logspace(np.log10(low), np.log10(high), 400)
-        source = ".ac range of the netlist"
-    else:
-        omega = frequency_grid(model)
-        source = "two decades beyond the eigenvalues"
-    hz = omega / (2 * np.pi)
-    response = frequency_response(model, omega)
+    data = bode(model, hz_range)
+    hz, source = data.frequency_hz, data.source
+    db, degrees = data.magnitude_db(), data.phase_deg()
     plt = _figure()
     fig, (mag, phase) = plt.subplots(2, 1, figsize=(9, 6.8), sharex=True)
-    for i, out in enumerate(model.outputs):
-        for j, inp in enumerate(model.inputs):
-            h = response[:, i, j]
-            if not np.any(h):
-                continue  # this input does not reach this output
-            with np.errstate(divide="ignore"):
-                mag.semilogx(hz, 20 * np.log10(np.abs(h)), label=f"{out}/{inp}", linewidth=1.2)
-            phase.semilogx(hz, np.degrees(np.unwrap(np.angle(h))), linewidth=1.2)
+    for p, (out, inp) in enumerate(data.pairs):  # pairs the input reaches
+        mag.semilogx(hz, db[:, p], label=f"{out}/{inp}", linewidth=1.2)
+        phase.semilogx(hz, degrees[:, p], linewidth=1.2)
     mag.set_ylabel("|H| [dB]")
     mag.set_title(f"frequency response: {_title(model.title, 80)} ({source})", fontsize=9)
     mag.grid(True, which="both", alpha=0.3)
