@@ -157,3 +157,25 @@ def test_sweep_table_shows_natural_frequency_and_damping() -> None:
     head, row = result.output.splitlines()[:2]
     assert head.split()[-6:] == ["λ1", "[1/s]", "fn1", "ζ1", "λ2", "[1/s]", "fn2", "ζ2"][-6:]
     assert row.count("159.2 mHz") == 2 and row.split()[-1] == "0.01"
+
+
+def test_log_sweep_locus_has_a_logarithmic_colour_bar(tmp_path, monkeypatch) -> None:
+    """A sweep of R1 over one decade evenly spaced in log gets a logarithmic colour bar (before, only
+    spreads above 100 did), and the same range evenly spaced in value keeps a linear one."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    from netlistdyn.io import plots
+
+    seen = []
+    real = plots.save_figure
+
+    def spy(fig, path):
+        bars = [ax._colorbar for ax in fig.axes if hasattr(ax, "_colorbar")]
+        seen.append(type(bars[0].norm))
+        real(fig, path)
+
+    monkeypatch.setattr(plots, "save_figure", spy)
+    for values in (np.logspace(0, 1, 20), np.linspace(1, 10, 20)):
+        cases = run_sweep(str(NETLISTS / "circuit1.cir"), [{"r1": float(v)} for v in values], None, jobs=1)
+        plots.sweep_plot(cases, str(tmp_path / "locus.png"))
+    assert seen == [LogNorm, Normalize]

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from netlistdyn.base.atomic import write_bytes
 from netlistdyn.base.errors import UsageError
@@ -27,6 +28,19 @@ def _figure() -> Any:
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def geometric(values: NDArray[np.float64]) -> bool:
+    """Whether distinct positive ``values`` are evenly spaced in log (a ``log:a:b:n`` sweep).
+
+    Three or more distinct values whose log steps agree to 1e-6 relative (SPICE numbers and
+    ``logspace`` round each value once, far below that); two values are taken as linear.
+    """
+    distinct = np.unique(values)
+    if distinct.size < 3 or distinct.min() <= 0:
+        return False
+    steps = np.diff(np.log(distinct))
+    return bool(np.all(np.abs(steps - steps.mean()) <= 1e-6 * steps.mean()))
 
 
 def figure_format(path: str) -> str:
@@ -166,7 +180,7 @@ def sweep_plot(cases: Any, path: str) -> None:
     spread = values.max() / values.min() if positive else 1.0
     norm = (
         LogNorm(values.min(), values.max())
-        if positive and spread > 100
+        if positive and (spread > 100 or geometric(values))
         else Normalize(values.min(), values.max() if values.size else 1.0)
     )
     tracks = [np.array(c["eigenvalues"], dtype=float).reshape(-1, 2) for c in good]
