@@ -34,10 +34,44 @@ from dataclasses import replace
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.netlist import GROUND, Diagnostic, Element, Kind, RodSpec
+from netlistdyn.devices.behavioural import nonlinear_behavioural
+from netlistdyn.devices.cards import CardContext, CardLine, canonical_node, is_expr, unwrap
+from netlistdyn.devices.models import mechanical_expression
+from netlistdyn.devices.traits import Family
 
 KEYWORDS = frozenset(
     {"mass", "inertia", "spring", "damper", "force", "torque", "velocity", "gear", "motor", "rod"}
 )
+
+
+def build_card(line: CardLine, ctx: CardContext) -> list[Element]:
+    """One mechanical line, ``KEYWORD name nodes... value``: its analog element (:func:`build_mechanical`).
+
+    A ``FORCE`` or ``TORQUE`` whose ``{expression}`` reads the motion is a force of the motion: a
+    behavioural current source from b into a
+    (:func:`~netlistdyn.devices.behavioural.nonlinear_behavioural`).
+    """
+    word = line.text.split(None, 1)[0]
+    loc = line.loc
+    values = ctx.values
+    fields = ctx.fields(line)
+    moving = word.lower() in ("force", "torque") and len(fields) == 5 and is_expr(fields[4])
+    if moving and mechanical_expression(fields[4]):
+        # a force of the motion, FORCE name a b {expr}: pushes a (current from b into a)
+        a, b = canonical_node(fields[2]), canonical_node(fields[3])
+        element = nonlinear_behavioural(f"{word.upper()} {fields[1]}", b, a, "i", unwrap(fields[4]), ctx, loc)
+        return [replace(element, name=fields[1], keyword=word.upper())]
+    return [
+        build_mechanical(
+            word.lower(),
+            fields[1:],
+            loc,
+            lambda token, what: values.number(token, loc, what),
+            canonical_node,
+            lambda tokens, what: ctx.source(list(tokens), loc, what)[:2],
+            ctx.warnings,
+        )
+    ]
 
 
 def build_mechanical(
@@ -145,6 +179,10 @@ def build_mechanical(
             Kind.INDUCTOR, name, (pivot, bob), 1.0, loc, keyword=word, rod=RodSpec(length, g, inverted)
         )
     raise AssertionError(keyword)  # pragma: no cover
+
+
+#: The mechanical cards, by keyword; their elements are the electrical analogs' kinds.
+FAMILY = Family((), dict.fromkeys(sorted(KEYWORDS), build_card))
 
 
 def carried_masses(elements: Sequence[Element]) -> dict[str, tuple[Element, ...]]:

@@ -22,6 +22,7 @@ from netlistdyn.devices import (
     controlled,
     coupling,
     diode,
+    mechanics,
     passive,
     sources,
     storage,
@@ -40,7 +41,7 @@ class Registry:
     kinds : mapping
         ``Kind`` (or a test's own tag) → :class:`DeviceKind`.
     cards : mapping
-        First letter of an element line (lower case) → its builder.
+        First letter of an element line, or its keyword (lower case) → its builder.
     """
 
     kinds: MappingProxyType[Any, DeviceKind]
@@ -66,9 +67,11 @@ class Registry:
         """A new registry with ``family``'s kinds and cards added (this one is unchanged)."""
         return Registry.of(Family(tuple(self.kinds.values()), dict(self.cards)), family)
 
-    def card(self, letter: str) -> CardBuilder | None:
-        """The builder of the element lines whose name starts with ``letter`` (None: no family reads them)."""
-        return self.cards.get(letter.lower())
+    def card(self, word: str) -> CardBuilder | None:
+        """The builder of an element line whose first word is ``word``: its keyword's (``MASS``...),
+        else its first letter's (None: no family reads it)."""
+        low = word.lower()
+        return self.cards.get(low) or self.cards.get(low[:1])
 
     def __getitem__(self, kind: Any) -> DeviceKind:
         return self.kinds[kind]
@@ -90,6 +93,7 @@ REGISTRY = Registry.of(
     diode.FAMILY,
     behavioural.FAMILY,
     storage.FAMILY,
+    mechanics.FAMILY,
 )
 
 

@@ -51,9 +51,8 @@ from netlistdyn.circuit.netlist import (
     TranSpec,
 )
 from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
-from netlistdyn.devices.behavioural import nonlinear_behavioural
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
-from netlistdyn.devices.mechanics import KEYWORDS, build_mechanical, resolve_rods
+from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
 from netlistdyn.devices.registry import REGISTRY, Registry
 
 #: Default limit on the number of elements after subcircuit expansion; raise it
@@ -962,35 +961,12 @@ def _make_pwl(
 
 
 def _build_element(line: Line, ctx: _Context) -> list[Element]:
+    """The elements of one element line, from the builder its device family registered."""
     word = line.text.split(None, 1)[0]
     letter = word[0].lower()
     loc = line.loc
-    values = ctx.values
     name = word
-    if word.lower() in KEYWORDS:
-        fields = _fields(line)
-        if word.lower() in ("force", "torque") and len(fields) == 5 and is_expr(fields[4]):
-            from netlistdyn.devices.models import mechanical_expression
-
-            if mechanical_expression(fields[4]):
-                # a force of the motion, FORCE name a b {expr}: pushes a (current from b into a)
-                a, b = canonical_node(fields[2]), canonical_node(fields[3])
-                element = nonlinear_behavioural(
-                    f"{word.upper()} {fields[1]}", b, a, "i", unwrap(fields[4]), ctx, loc
-                )
-                return [replace(element, name=fields[1], keyword=word.upper())]
-        return [
-            build_mechanical(
-                word.lower(),
-                fields[1:],
-                loc,
-                lambda token, what: values.number(token, loc, what),
-                canonical_node,
-                lambda tokens, what: _parse_source(list(tokens), loc, ctx, what)[:2],
-                ctx.warnings,
-            )
-        ]
-    build = ctx.devices.card(letter)
+    build = ctx.devices.card(word)
     if build is not None:
         return build(line, ctx)
     what = NONLINEAR_DEVICES.get(letter)
