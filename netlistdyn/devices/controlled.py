@@ -9,7 +9,7 @@ from netlistdyn.base.errors import NetlistError
 from netlistdyn.circuit.netlist import GROUND, Element, Kind
 from netlistdyn.devices.behavioural import build_behavioural, expression_after, poly_expression
 from netlistdyn.devices.cards import CardContext, CardLine, canonical_node, split_keywords
-from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText, Triplets
 
 #: Source forms of E, G, F and H that are not supported.
 _NONLINEAR_KEYWORDS = ("table", "laplace", "freq", "tablea", "chebyshev")
@@ -127,6 +127,18 @@ def ccvs_stamp(elem: Element, mna: Mna) -> None:
     mna.A.add(k, sense, -elem.value)
 
 
+def vccs_current(elem: Element, mna: Mna, row: int, c: Triplets, d: Triplets) -> None:
+    """gain·(v(c+) − v(c−))."""
+    cp, cn = (mna.index[node] for node in elem.control_nodes or (GROUND, GROUND))
+    c.add(row, cp, elem.value)
+    c.add(row, cn, -elem.value)
+
+
+def cccs_current(elem: Element, mna: Mna, row: int, c: Triplets, d: Triplets) -> None:
+    """gain·i_control."""
+    c.add(row, mna.branch_of[elem.control_source or ""], elem.value)
+
+
 def write_vcvs(circuit: Any, element: Element, text: SpiceText) -> None:
     """``E name n+ n− c+ c− gain``."""
     assert element.control_nodes is not None
@@ -177,6 +189,7 @@ FAMILY = Family(
             law=voltage_controlled_law,
             stamp=vccs_stamp,
             spice=write_vccs,
+            current=vccs_current,
         ),
         DeviceKind(
             Kind.CCCS,
@@ -187,6 +200,7 @@ FAMILY = Family(
             law=current_controlled_law,
             stamp=cccs_stamp,
             spice=write_cccs,
+            current=cccs_current,
         ),
         DeviceKind(
             Kind.CCVS,

@@ -10,7 +10,7 @@ from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.netlist import Diagnostic, Element, Kind
 from netlistdyn.devices.cards import CardContext, CardLine, canonical_node, check_value, split_keywords
 from netlistdyn.devices.storage import nonlinear_storage
-from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText, Triplets
 
 _PASSIVE = {
     "r": (Kind.RESISTOR, ("r", "resistance", "value"), "resistance"),
@@ -196,6 +196,13 @@ def resistor_stamp(elem: Element, mna: Mna) -> None:
     mna.A.branch(a, b, a, b, -1.0 / elem.value)
 
 
+def resistor_current(elem: Element, mna: Mna, row: int, c: Triplets, d: Triplets) -> None:
+    """(v(n+) − v(n−)) / R."""
+    a, b = mna.ends(elem)
+    c.add(row, a, 1.0 / elem.value)
+    c.add(row, b, -1.0 / elem.value)
+
+
 def capacitor_stamp(elem: Element, mna: Mna) -> None:
     """Capacitance C between n+ and n− (in E)."""
     a, b = mna.ends(elem)
@@ -237,6 +244,7 @@ FAMILY = Family(
             law=resistor_law,
             stamp=resistor_stamp,
             spice=write_resistor,
+            current=resistor_current,
         ),
         DeviceKind(
             Kind.CAPACITOR,

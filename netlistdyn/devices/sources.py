@@ -9,7 +9,7 @@ from typing import Any
 from netlistdyn.base.errors import NetlistError
 from netlistdyn.circuit.netlist import Element, Kind
 from netlistdyn.devices.cards import CardContext, CardLine, canonical_node
-from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText
+from netlistdyn.devices.traits import DeviceKind, ElementLaws, Family, Mna, Role, SpiceText, Triplets
 
 
 def build_source(line: CardLine, ctx: CardContext) -> list[Element]:
@@ -67,6 +67,11 @@ def isource_stamp(elem: Element, mna: Mna) -> None:
     mna.B.add(b, mna.source_col[elem.key], 1.0)
 
 
+def isource_current(elem: Element, mna: Mna, row: int, c: Triplets, d: Triplets) -> None:
+    """The input u itself."""
+    d.add(row, mna.source_col[elem.key], 1.0)
+
+
 def write_source(circuit: Any, element: Element, text: SpiceText) -> None:
     """``V``/``I name n+ n− [DC value] [waveform] [AC 1]``, the waveform written out in full."""
     waveform = element.waveform.resolved(*text.span) if element.waveform is not None else None
@@ -100,6 +105,7 @@ FAMILY = Family(
             law=isource_law,
             stamp=isource_stamp,
             spice=write_source,
+            current=isource_current,
         ),
     ),
     {"v": build_source, "i": build_source},

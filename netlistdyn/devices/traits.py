@@ -130,6 +130,10 @@ class Mna:
 #: ``stamp(element, mna)``: add the element's entries to the descriptor system.
 Stamp = Callable[[Element, Mna], None]
 
+#: ``current(element, mna, row, C, D)``: add the element's current (A) as output ``row`` of
+#: ``y = C x + D u`` (for an element whose current is not an unknown).
+Current = Callable[[Element, Mna, int, Triplets, Triplets], None]
+
 
 @dataclass(frozen=True)
 class SpiceText:
@@ -194,6 +198,9 @@ class DeviceKind:
         Its constitutive equations (:data:`Law`); None when they are wholly nonlinear.
     stamp : callable or None
         Its stamp into the sparse descriptor system (:data:`Stamp`); None: not supported there.
+    current : callable or None
+        Its current as an output of the descriptor system, when it is not an unknown
+        (:data:`Current`); None: not available there (a capacitor's).
     spice : callable or None
         How it is written for ngspice (:data:`Writer`).
     """
@@ -209,6 +216,7 @@ class DeviceKind:
     law: Law | None = None
     stamp: Stamp | None = None
     spice: Writer | None = None
+    current: Current | None = None
 
 
 @dataclass(frozen=True)

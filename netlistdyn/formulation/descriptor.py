@@ -148,7 +148,7 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: boo
     B = _matrix(mna.B, (n, len(sources)))
     E.eliminate_zeros()
     probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
-    C, D = _output_rows(probes, netlist, index, branch_of, source_col, n)
+    C, D = _output_rows(probes, netlist, mna, n)
     if reduce:
         needed = {p.element for p in probes if p.kind == "i"}
         needed |= {e.control_source for e in netlist.elements if e.control_source}
@@ -172,14 +172,11 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: boo
 
 
 def _output_rows(
-    probes: Sequence[Probe],
-    netlist: Netlist,
-    index: dict[str, int],
-    branch_of: dict[str, int],
-    source_col: dict[str, int],
-    n: int,
+    probes: Sequence[Probe], netlist: Netlist, mna: Mna, n: int
 ) -> tuple[sp.csr_array, sp.csr_array]:
+    """C and D of the outputs: node voltages, and currents (an unknown's, or the device's own form)."""
     c_t, d_t = Triplets(), Triplets()
+    index, branch_of = mna.index, mna.branch_of
     for row, probe in enumerate(probes):
         if probe.kind == "v":
             c_t.add(row, index[probe.nodes[0]], 1.0)
@@ -188,26 +185,17 @@ def _output_rows(
         if probe.kind != "i":
             raise UsageError(f"--output {probe.name}: not available in the sparse descriptor form")
         elem = netlist.element(probe.element)
-        a, b = index[elem.nodes[0]], index[elem.nodes[1]]
+        current = REGISTRY[elem.kind].current
         if elem.key in branch_of:
             c_t.add(row, branch_of[elem.key], 1.0)
-        elif elem.kind is Kind.RESISTOR:
-            c_t.add(row, a, 1.0 / elem.value)
-            c_t.add(row, b, -1.0 / elem.value)
-        elif elem.kind is Kind.ISOURCE:
-            d_t.add(row, source_col[elem.key], 1.0)
-        elif elem.kind is Kind.VCCS:
-            c, d = (index[node] for node in elem.control_nodes or (GROUND, GROUND))
-            c_t.add(row, c, elem.value)
-            c_t.add(row, d, -elem.value)
-        elif elem.kind is Kind.CCCS:
-            c_t.add(row, branch_of[elem.control_source or ""], elem.value)
+        elif current is not None:
+            current(elem, mna, row, c_t, d_t)
         else:
             raise UsageError(
                 f"--output {probe.name}: a capacitor current is not available in the sparse descriptor form"
             )
     p = len(probes)
-    return _matrix(c_t, (p, n)).tocsr(), _matrix(d_t, (p, len(source_col))).tocsr()
+    return _matrix(c_t, (p, n)).tocsr(), _matrix(d_t, (p, len(mna.source_col))).tocsr()
 
 
 def initial_inputs(netlist: Netlist) -> NDArray[np.float64]:
