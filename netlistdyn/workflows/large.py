@@ -18,6 +18,7 @@ import numpy as np
 
 from netlistdyn.base.errors import UsageError
 from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.devices.registry import REGISTRY
 from netlistdyn.formulation.descriptor import DescriptorSystem, assemble, supports
 
 if TYPE_CHECKING:
@@ -29,9 +30,7 @@ DESCRIPTOR_UNKNOWNS = 5000
 
 def unknown_count(netlist: Netlist) -> int:
     """Number of MNA unknowns: nodes plus the currents of L, V, E and H elements."""
-    branches = sum(
-        1 for e in netlist.elements if e.kind in (Kind.INDUCTOR, Kind.VSOURCE, Kind.VCVS, Kind.CCVS)
-    )
+    branches = sum(1 for e in netlist.elements if REGISTRY[e.kind].branch_current)
     return len(netlist.nodes) + branches
 
 
