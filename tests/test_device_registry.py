@@ -8,6 +8,7 @@ package's own :data:`REGISTRY` is not changed, and still refuses a ``Y`` line.
 from __future__ import annotations
 
 import enum
+import pickle
 from collections.abc import Callable
 from typing import Any
 
@@ -115,3 +116,13 @@ def test_every_kind_has_a_record() -> None:
     assert set(Kind) == set(REGISTRY.kinds)
     for record in REGISTRY:
         assert REGISTRY.card(record.letter) is not None, record.kind
+
+
+def test_a_registry_pickles() -> None:
+    """A compiled formulation carries its registry to ``sweep --jobs`` workers: it pickles, toy kinds too."""
+    devices = with_toy()
+    copy = pickle.loads(pickle.dumps(devices))
+    assert dict(copy.kinds) == dict(devices.kinds) and dict(copy.cards) == dict(devices.cards)
+    formulation = formulate(parse_text(NETLIST, devices=devices), ["v(out)"], devices=devices)
+    again = pickle.loads(pickle.dumps(formulation))
+    np.testing.assert_array_equal(again.model.A, formulation.model.A)

@@ -82,6 +82,15 @@ class Registry:
     def __iter__(self) -> Iterator[DeviceKind]:
         return iter(self.kinds.values())
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled as its two tables (a compiled formulation crosses to ``sweep --jobs`` workers)."""
+        return (_registry, (dict(self.kinds), dict(self.cards)))
+
+
+def _registry(kinds: dict[Any, DeviceKind], cards: dict[str, CardBuilder]) -> Registry:
+    """A registry of these tables (read-only views of them)."""
+    return Registry(MappingProxyType(kinds), MappingProxyType(cards))
+
 
 #: Every device family of netlistdyn: one line per family module.
 REGISTRY = Registry.of(

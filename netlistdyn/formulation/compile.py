@@ -127,7 +127,7 @@ def recompile(formulation: Formulation, netlist: Netlist) -> StateSpaceModel:
         for a, b in zip(old, netlist.elements, strict=True)
     )
     if not same:
-        return compile_netlist(netlist, [p.name for p in formulation.probes])
+        return formulate(netlist, [p.name for p in formulation.probes], formulation.circuit.devices).model
     by_key = {e.key: e for e in netlist.elements}
     circuit = replace(
         formulation.circuit,
@@ -136,4 +136,4 @@ def recompile(formulation: Formulation, netlist: Netlist) -> StateSpaceModel:
     try:
         return compile_on_tree(netlist, circuit, formulation.tree, formulation.probes)
     except (SingularCircuitError, NotSupportedError):
-        return compile_netlist(netlist, [p.name for p in formulation.probes])
+        return formulate(netlist, [p.name for p in formulation.probes], formulation.circuit.devices).model
