@@ -67,8 +67,8 @@ START, END = "<!-- bench:start -->", "<!-- bench:end -->"
 
 
 def update_readme(summary: Path) -> None:
-    """Replace the table between the bench markers in README.md with ``summary``."""
-    readme = ROOT / "README.md"
+    """Replace the table between the bench markers of the performance page with ``summary``."""
+    readme = ROOT / "docs" / "campaigns" / "performance.md"
     text = readme.read_text()
     head, rest = text.split(START, 1)
     _, tail = rest.split(END, 1)
@@ -84,7 +84,7 @@ def main() -> None:
     parser.add_argument(
         "--update-readme",
         action="store_true",
-        help="Only copy summary.md into README.md between the bench markers.",
+        help="Only copy summary.md into docs/campaigns/performance.md between the bench markers.",
     )
     args = parser.parse_args()
     if args.update_readme:

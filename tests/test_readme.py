@@ -1,9 +1,9 @@
-"""The README's example transcripts are what the commands print.
+"""The example transcripts of the README and of the documentation are what the commands print.
 
-Each ``$ netlistdyn ...`` block of the README is run (from the repository
-root, as the README's commands are) and its lines must appear in the
-output in order; a ``...`` line stands for any number of lines. Words must
-match exactly. Numbers are compared as printed figures:
+Each ``$ netlistdyn ...`` block of the README and of the documentation's own
+pages (:data:`DOC_PAGES`) is run (from the repository root, as their commands
+are) and its lines must appear in the output in order; a ``...`` line stands
+for any number of lines. Words must match exactly. Numbers are compared as printed figures:
 
 - an error estimate or error figure below :data:`ROUNDING_LEVEL` measures
   rounding, whose size depends on the order of floating-point operations
@@ -18,6 +18,7 @@ from __future__ import annotations
 import re
 import shlex
 import shutil
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -36,15 +37,25 @@ ROUNDING_FACTOR = 10.0
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
-def _transcripts() -> list[tuple[str, list[str]]]:
-    """(command, expected lines) of each ``$ netlistdyn`` block in the README."""
-    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+#: The documentation's pages in its sections' folders (the guide, the language, the examples, the
+#: campaigns); pages directly in ``docs/`` are topic pages whose transcripts their authors check.
+DOC_PAGES = sorted((ROOT / "docs").glob("*/**/*.md"))
+
+
+def _transcripts_of(page: Path) -> list[tuple[str, list[str]]]:
+    """(command, expected lines) of each ``$ netlistdyn`` block of one Markdown page."""
+    lines = page.read_text(encoding="utf-8").splitlines()
     found = []
     for k, line in enumerate(lines):
-        if line.startswith("$ netlistdyn ") and lines[k - 1].strip() == "```":
+        if line.startswith("$ netlistdyn ") and k > 0 and lines[k - 1].strip() == "```":
             end = next(j for j in range(k + 1, len(lines)) if lines[j].strip() == "```")
             found.append((line[2:], lines[k + 1 : end]))
     return found
+
+
+def _transcripts() -> list[tuple[str, list[str]]]:
+    """(command, expected lines) of each ``$ netlistdyn`` block in the README."""
+    return _transcripts_of(ROOT / "README.md")
 
 
 def _same_token(expected: str, actual: str) -> bool:
@@ -82,6 +93,12 @@ def _follows(expected: list[str], output: list[str]) -> str | None:
 
 
 TRANSCRIPTS = _transcripts()
+#: (page, command, expected lines) of the README and of every documentation page.
+ALL_TRANSCRIPTS = [
+    (page.relative_to(ROOT).as_posix(), command, expected)
+    for page in [ROOT / "README.md", *DOC_PAGES]
+    for command, expected in _transcripts_of(page)
+]
 
 
 def test_the_readme_has_its_example_transcripts() -> None:
@@ -89,9 +106,18 @@ def test_the_readme_has_its_example_transcripts() -> None:
     assert "netlistdyn analyze netlists/circuit1.cir" in commands
 
 
-@pytest.mark.parametrize("command, expected", TRANSCRIPTS, ids=[c for c, _ in TRANSCRIPTS])
+def test_the_documentation_has_transcripts_too() -> None:
+    """The transcripts moved out of the README into the guide are still checked."""
+    pages = {page for page, _, _ in ALL_TRANSCRIPTS}
+    assert "docs/guide/validate.md" in pages
+    assert "docs/guide/analyze.md" in pages
+
+
+@pytest.mark.parametrize(
+    "page, command, expected", ALL_TRANSCRIPTS, ids=[f"{p}: {c}" for p, c, _ in ALL_TRANSCRIPTS]
+)
 def test_transcript_is_what_the_command_prints(
-    command: str, expected: list[str], monkeypatch: pytest.MonkeyPatch
+    page: str, command: str, expected: list[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     args = shlex.split(command)[1:]
     if args[0] in ("validate", "bench") and shutil.which("ngspice") is None:
@@ -101,5 +127,5 @@ def test_transcript_is_what_the_command_prints(
     assert result.exit_code == 0, result.output
     missing = _follows(expected, result.output.splitlines())
     assert missing is None, (
-        f"README line not printed by `{command}`:\n{missing}\n--- printed:\n{result.output}"
+        f"{page} line not printed by `{command}`:\n{missing}\n--- printed:\n{result.output}"
     )

@@ -13,7 +13,7 @@ keyword                   analog                   state / quantity
 ``GEAR a b N``            ideal transformer        ω(a) = N ω(b), τ_b = N τ_a
 ``MOTOR e+ e- m Km``      ideal transformer        v = Km ω(m), τ = Km i
 ``ROD pivot bob l``       L = l / T (T: weight)    horizontal force (N)
-  ``[g=9.81] [inverted]``
+``[g=9.81] [inverted]``
 ========================  =======================  ==========================
 
 Rotation is the same with ``INERTIA`` (J), torsional springs, ``TORQUE``

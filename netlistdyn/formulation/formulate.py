@@ -11,11 +11,11 @@ Each branch contributes one constitutive equation, giving a linear
 descriptor system ``G w + E w' + F u = 0`` in the primaries ``w``. The
 primaries fall into four classes:
 
-``x``  tree-capacitor voltages and link-inductor currents — the states;
-``s``  independent-source primaries, equal to an input;
-``d``  excess elements — link-capacitor currents C·d/dt(loop voltage) and
-       tree-inductor voltages d/dt(cutset flux) — defined by derivatives;
-``y``  everything else, found from the resistive equations.
+* ``x``: tree-capacitor voltages and link-inductor currents — the states;
+* ``s``: independent-source primaries, equal to an input;
+* ``d``: excess elements — link-capacitor currents C·d/dt(loop voltage) and
+  tree-inductor voltages d/dt(cutset flux) — defined by derivatives;
+* ``y``: everything else, found from the resistive equations.
 
 Eliminating ``s``, ``d`` and ``y`` (one sparse factorisation of the
 resistive part) leaves ``M x' = N x + B₀ u + K₀ u'``. An input derivative
