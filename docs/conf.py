@@ -162,7 +162,7 @@ def _planar_link(app: Sphinx, docname: str, source: list[str]) -> None:
     if docname != "language/planar":
         return
     if (HERE / "planar.md").exists():
-        text = "Planar mechanisms are described on [their own page](/planar.md)."
+        text = "Planar mechanisms are described on [their own page](../planar.md)."
     else:
         text = "Planar mechanisms are not documented yet: this page will link their page when it exists."
     source[0] = source[0].replace("<!-- planar-link -->", text)
