@@ -46,6 +46,9 @@ root_doc = "index"
 
 myst_enable_extensions = ["colon_fence", "dollarmath"]
 myst_heading_anchors = 4
+# Topic pages written beside the code (docs/*.md) may start at ## or skip a level: that is layout, not
+# a broken page, so it is not an error.
+suppress_warnings = ["myst.header"]
 
 autosummary_generate = True
 autosummary_imported_members = False
@@ -157,6 +160,29 @@ def _module_pages(app: Sphinx) -> None:
             stale.unlink()
 
 
+#: A Markdown link ``[text](target)`` (not an image).
+_MD_LINK = re.compile(r"(?<!!)\[([^\]]+)\]\(([^)\s]+)\)")
+
+
+def _outside_links(app: Sphinx, docname: str, source: list[str]) -> None:
+    """Write links to Markdown files outside ``docs/`` (``../README.md``) as their text.
+
+    Pages are read on GitHub too, where such links work; the site has no page for those files.
+    """
+    page_dir = (HERE / docname).parent
+
+    def unlink(match: re.Match[str]) -> str:
+        target = match.group(2).split("#")[0]
+        if "://" in target or not target.endswith(".md"):
+            return match.group(0)
+        resolved = (page_dir / target).resolve()
+        if resolved.is_relative_to(HERE) or not resolved.exists():
+            return match.group(0)
+        return f"{match.group(1)} (`{resolved.relative_to(HERE.parent).as_posix()}`)"
+
+    source[0] = _MD_LINK.sub(unlink, source[0])
+
+
 def _planar_link(app: Sphinx, docname: str, source: list[str]) -> None:
     """Point the planar-mechanisms placeholder at ``docs/planar.md`` when that page exists."""
     if docname != "language/planar":
@@ -176,3 +202,4 @@ def setup(app: Sphinx) -> None:
     app.connect("autodoc-skip-member", _skip)
     app.connect("builder-inited", _module_pages)
     app.connect("source-read", _planar_link)
+    app.connect("source-read", _outside_links)
