@@ -1,4 +1,4 @@
-"""Independent-source waveforms as SPICE defines them (DC, PULSE, SIN, PWL, EXP).
+"""Independent-source waveforms as SPICE defines them (DC, PULSE, SIN, PWL, EXP, AM, SFFM).
 
 A waveform does not change the state-space matrices; it is kept with its
 source for simulation and validation. Parameters that SPICE leaves to the
@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import jv
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
 
@@ -59,9 +60,67 @@ class Dc:
         return f"DC {self.value!r}"
 
 
+#: A time within this fraction of a PULSE period of a period boundary is read as on it (the
+#: boundary computed as TD + k·PER and the phase (t − TD)/PER differ by rounding only).
+PULSE_PHASE_SNAP = 1e-12
+
+
+def pulse_values(
+    t: ArrayLike,
+    p: dict[str, NDArray[np.float64]] | Pulse,
+    left: bool = False,
+) -> NDArray[np.float64]:
+    """PULSE values at ``t`` as ngspice 39's ``vsrcload`` computes them, period by period (V or A).
+
+    Each period starts again at V1: when TR + PW + TF exceeds PER the period is cut at PER
+    (ngspice reads the time modulo PER before it looks at TR, PW and TF), so the waveform jumps
+    back to V1 at TD + k·PER. The value there is the one after that jump; ``left`` gives the
+    limit from the left (the level the previous period reached at PER). After NCYCLES periods
+    (LTspice's, ngspice's eighth value) the level is V1.
+
+    Parameters
+    ----------
+    t : array_like
+        Times (s).
+    p : Pulse or dict of arrays
+        A resolved :class:`Pulse`, or its fields as arrays broadcast against ``t`` (many pulses
+        at once).
+    left : bool
+        Limits from the left instead of values.
+    """
+    get = (lambda f: np.asarray(getattr(p, f), dtype=float)) if isinstance(p, Pulse) else p.__getitem__
+    v1, v2, td, tr, tf, pw, per = (get(f) for f in ("v1", "v2", "td", "tr", "tf", "pw", "per"))
+    if isinstance(p, Pulse):
+        ncycles = np.asarray(np.inf if p.ncycles is None else p.ncycles, dtype=float)
+    else:
+        ncycles = p["ncycles"]
+    local = np.asarray(t, dtype=float) - td
+    q = local / per
+    k = np.floor(q)
+    frac = q - k
+    snap = frac > 1.0 - PULSE_PHASE_SNAP
+    k = np.where(snap, k + 1, k)
+    phase = np.where(snap | (frac < PULSE_PHASE_SNAP), 0.0, local - k * per)
+    if left:  # on a boundary (k ≥ 1) the left limit is where the previous period ended, at PER
+        on_edge = (phase == 0.0) & (k >= 1)
+        k = np.where(on_edge, k - 1, k)
+        phase = np.where(on_edge, per, phase)
+    out = np.where(phase < tr, v1 + (v2 - v1) * phase / tr, v2)
+    fall = phase - tr - pw
+    out = np.where(fall > 0, np.where(fall < tf, v2 + (v1 - v2) * fall / tf, v1), out)
+    with np.errstate(invalid="ignore"):  # inf·PER
+        cut = ncycles * per
+    ended = (local > cut) if left else (local >= cut)
+    return np.where((local <= 0) | ended, v1, out)
+
+
 @dataclass(frozen=True, slots=True)
 class Pulse:
-    """``PULSE(V1 V2 TD TR TF PW PER)``; times in s, levels in V or A."""
+    """``PULSE(V1 V2 TD TR TF PW PER [NCYCLES])``; times in s, levels in V or A.
+
+    NCYCLES (LTspice's eighth value, which ngspice 39 reads the same way): the number of periods,
+    after which the level stays V1; ``None``: endless.
+    """
 
     v1: float
     v2: float
@@ -70,6 +129,7 @@ class Pulse:
     tf: float | None = None
     pw: float | None = None
     per: float | None = None
+    ncycles: float | None = None
 
     def resolved(self, tstep: float, tstop: float) -> Pulse:
         """Fill TR, TF (default TSTEP), PW and PER (default TSTOP) as ngspice 39 does.
@@ -91,41 +151,43 @@ class Pulse:
         return self.tr, self.tf, self.pw, self.per
 
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
-        tr, tf, pw, per = self._times()
-        tt = np.asarray(t, dtype=float) - self.td
-        # As ngspice 39: wrap only strictly after one period, so t − TD = PER itself is
-        # read in the first period (it matters when TR + PW + TF > PER, e.g. at TSTOP).
-        local = np.where(tt > per, tt - per * np.floor(tt / per), tt)
-        out = np.full(local.shape, self.v1)
-        rise = (local > 0) & (local < tr)
-        out = np.where(rise, self.v1 + (self.v2 - self.v1) * local / tr, out)
-        high = (local >= tr) & (local <= tr + pw)
-        out = np.where(high, self.v2, out)
-        fall = (local > tr + pw) & (local < tr + pw + tf)
-        out = np.where(fall, self.v2 + (self.v1 - self.v2) * (local - tr - pw) / tf, out)
-        return out
+        self._times()
+        return pulse_values(t, self)
 
     def left(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Limit from the left at t (the waveform is continuous for t > 0: its value)."""
-        return self(t)
+        """Limit from the left at t: differs from the value where a period is cut at PER."""
+        self._times()
+        return pulse_values(t, self, left=True)
 
-    def breakpoint_count(self, tstop: float) -> int:
-        """How many corners :meth:`breakpoints` gives in [0, tstop], at most (counted, not listed)."""
+    def _periods(self, tstop: float) -> int:
+        """How many periods start in [0, tstop] (NCYCLES bounds them)."""
         *_, per = self._times()
         if self.td > tstop:
             return 0
-        return 4 * (math.floor((tstop - self.td) / per) + 1)
+        count = math.floor((tstop - self.td) / per) + 1
+        return count if self.ncycles is None else min(count, math.ceil(self.ncycles))
+
+    def breakpoint_count(self, tstop: float) -> int:
+        """How many corners :meth:`breakpoints` gives in [0, tstop], at most (counted, not listed)."""
+        return 4 * self._periods(tstop) + 1
 
     def breakpoints(self, tstop: float) -> tuple[float, ...]:
-        """Corners of the trapezoid in [0, tstop] (s); see :func:`check_breakpoints` for the bound."""
+        """Corners in [0, tstop] (s): each period's start, and its trapezoid's corners before PER.
+
+        A period's start is TD + k·PER (a product, as the value is computed, not a running sum);
+        see :func:`check_breakpoints` for the bound.
+        """
         tr, tf, pw, per = self._times()
+        offsets = [x for x in (tr, tr + pw, tr + pw + tf) if x < per]
         points: list[float] = []
-        start = self.td
-        while start <= tstop:
-            for offset in (0.0, tr, tr + pw, tr + pw + tf):
-                if start + offset <= tstop:
-                    points.append(start + offset)
-            start += per
+        for k in range(self._periods(tstop)):
+            start = self.td + k * per
+            end = math.inf if self.ncycles is None else self.td + self.ncycles * per
+            for x in [start, *(start + o for o in offsets)]:
+                if x <= tstop and x < end:
+                    points.append(x)
+        if self.ncycles is not None and self.td + self.ncycles * per <= tstop:
+            points.append(self.td + self.ncycles * per)  # the last period ends, cut or not, at V1
         return tuple(points)
 
     @property
@@ -140,7 +202,8 @@ class Pulse:
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
         tr, tf, pw, per = self._times()
-        return f"PULSE({self.v1!r} {self.v2!r} {self.td!r} {tr!r} {tf!r} {pw!r} {per!r})"
+        tail = "" if self.ncycles is None else f" {self.ncycles!r}"
+        return f"PULSE({self.v1!r} {self.v2!r} {self.td!r} {tr!r} {tf!r} {pw!r} {per!r}{tail})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -199,6 +262,169 @@ class Sin:
     def spice(self) -> str:
         """The waveform in ngspice syntax."""
         return f"SIN({self.vo!r} {self.va!r} {self.freq!r} {self.td!r} {self.theta!r} {self.phase!r})"
+
+
+def _sine_terms(
+    start: float, amplitude: float, omega: float, phase: float
+) -> list[tuple[float, complex, complex]]:
+    """A·sin(ω(t − start) + φ) from ``start`` on as two exponential terms c·e^{μ(t − start)} + conj."""
+    if amplitude == 0:
+        return []
+    c = amplitude * complex(math.cos(phase), math.sin(phase)) / 2j
+    return [(start, c, complex(0.0, omega)), (start, c.conjugate(), complex(0.0, -omega))]
+
+
+@dataclass(frozen=True, slots=True)
+class Am:
+    """``AM(VA VO MF FC TD PHASEC PHASES)`` as ngspice 39's ``vsrcload`` computes it (V or A).
+
+    From TD on, with s = t − TD: VA·(VO + sin(2π·MF·s + φs))·sin(2π·FC·s + φs); 0 before TD.
+    ngspice 39 applies PHASES to both sines and reads PHASEC but does not use it (its source
+    code; measured with ``ngspice -b``). MF defaults to 1/TSTOP; FC to 0. ``offset`` is a
+    constant added (0 as written; :mod:`netlistdyn.simulation.initial` subtracts an operating
+    point with it).
+    """
+
+    va: float
+    vo: float
+    mf: float | None = None
+    fc: float = 0.0
+    td: float = 0.0
+    phasec: float = 0.0
+    phases: float = 0.0
+    offset: float = 0.0
+
+    def resolved(self, tstep: float, tstop: float) -> Am:
+        """MF defaults to 1/TSTOP (a zero MF counts as not given, as in ngspice 39)."""
+        return replace(self, mf=self.mf if self.mf else 1.0 / tstop)
+
+    def _value(self, t: ArrayLike, left: bool) -> NDArray[np.float64]:
+        assert self.mf is not None
+        s = np.asarray(t, dtype=float) - self.td
+        ps = math.radians(self.phases)
+        carrier = np.sin(2 * math.pi * self.fc * s + ps)
+        wave = self.va * (self.vo + np.sin(2 * math.pi * self.mf * s + ps)) * carrier
+        return self.offset + np.where((s <= 0) if left else (s < 0), 0.0, wave)
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Value at t; at TD the value just after it (a jump there when PHASES is not 0)."""
+        return self._value(t, left=False)
+
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t: 0 at TD itself (ngspice's value there)."""
+        return self._value(t, left=True)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """The start of the modulation, if inside the horizon (s)."""
+        return (self.td,) if 0 < self.td <= tstop else ()
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """A modulated sine is smooth, not piecewise linear."""
+        return False
+
+    @property
+    def rate(self) -> float:
+        """Fastest angular frequency in the waveform (rad/s)."""
+        assert self.mf is not None
+        return 2 * math.pi * (abs(self.mf) + abs(self.fc))
+
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """From TD on: VA·VO·sin(ωc s + φ) + VA/2·[sin((ωm − ωc)s + π/2) − sin((ωm + ωc)s + 2φ + π/2)].
+
+        (sin a · sin b = [cos(a − b) − cos(a + b)]/2.) The rest of the waveform is 0.
+        """
+        assert self.mf is not None
+        wm, wc, ps = 2 * math.pi * self.mf, 2 * math.pi * self.fc, math.radians(self.phases)
+        terms = _sine_terms(self.td, self.va * self.vo, wc, ps)
+        terms += _sine_terms(self.td, self.va / 2, wm - wc, math.pi / 2)
+        terms += _sine_terms(self.td, -self.va / 2, wm + wc, 2 * ps + math.pi / 2)
+        return tuple(terms)
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax (an ``offset`` is not expressible: refused)."""
+        if self.offset:
+            raise ValueError("an offset AM waveform has no ngspice form")
+        return (
+            f"AM({self.va!r} {self.vo!r} {self.mf!r} {self.fc!r} {self.td!r} {self.phasec!r} {self.phases!r})"
+        )
+
+
+#: SFFM's Bessel series (see :meth:`Sffm.exponential_terms`) stops where |J_k(MDI)| is below this
+#: (relative to 1): far below double rounding of the waveform itself.
+SFFM_BESSEL_CUTOFF = 1e-18
+
+
+@dataclass(frozen=True, slots=True)
+class Sffm:
+    """``SFFM(VO VA FC MDI FS PHASEC PHASES)``: VO + VA·sin(2π·FC·t + φc + MDI·sin(2π·FS·t + φs)).
+
+    As ngspice 39's ``vsrcload``: no delay; FC and FS default to 1/TSTOP (a zero counts as not
+    given), MDI to 0; phases in degrees.
+    """
+
+    vo: float
+    va: float
+    fc: float | None = None
+    mdi: float = 0.0
+    fs: float | None = None
+    phasec: float = 0.0
+    phases: float = 0.0
+
+    def resolved(self, tstep: float, tstop: float) -> Sffm:
+        """FC and FS default to 1/TSTOP."""
+        return replace(self, fc=self.fc if self.fc else 1.0 / tstop, fs=self.fs if self.fs else 1.0 / tstop)
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        assert self.fc is not None and self.fs is not None
+        tt = np.asarray(t, dtype=float)
+        inner = self.mdi * np.sin(2 * math.pi * self.fs * tt + math.radians(self.phases))
+        return self.vo + self.va * np.sin(2 * math.pi * self.fc * tt + math.radians(self.phasec) + inner)
+
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Limit from the left at t (continuous: its value)."""
+        return self(t)
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """None: the waveform is smooth from t = 0 on."""
+        return ()
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """A frequency-modulated sine is smooth, not piecewise linear."""
+        return False
+
+    @property
+    def rate(self) -> float:
+        """Fastest angular frequency in the waveform (rad/s): carrier plus peak deviation (Carson)."""
+        assert self.fc is not None and self.fs is not None
+        return 2 * math.pi * (abs(self.fc) + abs(self.mdi * self.fs) + abs(self.fs))
+
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """VA·sin(a + MDI·sin b) = VA·Σ_k J_k(MDI)·sin(a + k·b) (Jacobi–Anger), from t = 0.
+
+        The series stops where the Bessel factors fall below :data:`SFFM_BESSEL_CUTOFF`; the
+        remainder (VO and the dropped tail, below 1e-17·VA) is taken as piecewise linear.
+        """
+        assert self.fc is not None and self.fs is not None
+        wc, ws = 2 * math.pi * self.fc, 2 * math.pi * self.fs
+        pc, ps = math.radians(self.phasec), math.radians(self.phases)
+        if self.mdi == 0:
+            return tuple(_sine_terms(0.0, self.va, wc, pc))
+        reach = int(abs(self.mdi)) + 30
+        while abs(jv(reach, self.mdi)) > SFFM_BESSEL_CUTOFF:
+            reach *= 2
+        terms: list[tuple[float, complex, complex]] = []
+        for k in range(-reach, reach + 1):
+            weight = float(jv(k, self.mdi))
+            if abs(weight) > SFFM_BESSEL_CUTOFF:
+                terms += _sine_terms(0.0, self.va * weight, wc + k * ws, pc + k * ps)
+        return tuple(terms)
+
+    def spice(self) -> str:
+        """The waveform in ngspice syntax."""
+        fields = (self.vo, self.va, self.fc, self.mdi, self.fs, self.phasec, self.phases)
+        return f"SFFM({' '.join(repr(x) for x in fields)})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -352,7 +578,7 @@ class Random:
         raise self._refuse()
 
 
-Waveform = Dc | Pulse | Sin | Pwl | Exp | Random
+Waveform = Dc | Pulse | Sin | Pwl | Exp | Am | Sffm | Random
 
 
 def breakpoint_limit() -> int:

@@ -50,7 +50,7 @@ from netlistdyn.circuit.netlist import (
     StepSpec,
     TranSpec,
 )
-from netlistdyn.circuit.waveforms import Exp, Pulse, Pwl, Random, Sin, Waveform
+from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin, Waveform
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
 from netlistdyn.devices.registry import REGISTRY, Registry
@@ -120,7 +120,6 @@ OTHER_UNSUPPORTED = {
     "p": "coupled transmission line",
 }
 SOURCE_FUNCTIONS = ("pulse", "sin", "pwl", "exp", "sffm", "am", "trnoise", "trrandom")
-_UNSUPPORTED_WAVEFORMS = ("sffm", "am")
 
 # --------------------------------------------------------------------------------------------
 # Reading files
@@ -807,8 +806,6 @@ def _parse_source(
         elif word in SOURCE_FUNCTIONS:
             if waveform is not None:
                 raise NetlistError(f"{name}: a second waveform {token.upper()}", loc)
-            if word in _UNSUPPORTED_WAVEFORMS:
-                raise NetlistError(f"{name}: {word.upper()} sources are not supported", loc)
             waveform, i = _parse_waveform_call(word, fields, i + 1, loc, ctx, name)
         elif values.is_value(token):
             if seen_any:
@@ -823,6 +820,10 @@ def _parse_source(
         seen_any = True
     # ngspice 39: a leading value wins over DC keywords; among DC keywords the last wins.
     dc = leading if leading is not None else (dc_keyword if dc_keyword is not None else 0.0)
+    if leading is None and dc_keyword is None and waveform is not None and not isinstance(waveform, Random):
+        # ngspice 39 (vsrcload/isrcload): a source without a DC value takes its waveform's value at
+        # t = 0 at the operating point (and so at .ac's and .dc's linearisation point).
+        dc = float(waveform.resolved(1.0, 1.0).left([0.0])[0])
     if portnum is not None and z0 is None:
         z0 = 50.0
     if z0 is not None and portnum is None:
@@ -883,15 +884,26 @@ def _make_waveform(
     if keywords and kind != "pwl":
         raise NetlistError(f"{name}: unknown parameter {next(iter(keywords))}= in {kind.upper()}", loc)
     if kind == "pulse":
-        need(2, 7)
-        a = args + [None] * (7 - len(args))
+        need(2, 8)
+        a = args + [None] * (8 - len(args))
         if a[6] is not None and a[6] < 0:
             raise NetlistError(f"{name}: PULSE period is negative", loc)
-        return Pulse(args[0], args[1], a[2] or 0.0, a[3], a[4], a[5], a[6])
+        # The eighth value: the number of periods (LTspice's Ncycles; ngspice 39 reads it so
+        # too, a value <= 0 meaning endless). Then the level stays V1.
+        ncycles = a[7] if a[7] is not None and a[7] > 0 else None
+        return Pulse(args[0], args[1], a[2] or 0.0, a[3], a[4], a[5], a[6], ncycles)
     if kind == "sin":
-        need(2, 6)
-        a = args + [None] * (6 - len(args))
+        need(2, 7)  # KiCad writes a seventh value; ngspice 39 reads and ignores it (measured)
+        a = args + [None] * (7 - len(args))
         return Sin(args[0], args[1], a[2], a[3] or 0.0, a[4] or 0.0, a[5] or 0.0)
+    if kind == "am":
+        need(2, 7)
+        a = args + [None] * (7 - len(args))
+        return Am(args[0], args[1], a[2], a[3] or 0.0, a[4] or 0.0, a[5] or 0.0, a[6] or 0.0)
+    if kind == "sffm":
+        need(2, 7)
+        a = args + [None] * (7 - len(args))
+        return Sffm(args[0], args[1], a[2], a[3] or 0.0, a[4], a[5] or 0.0, a[6] or 0.0)
     if kind == "exp":
         need(2, 6)
         a = args + [None] * (6 - len(args))

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from netlistdyn.analysis.eigen import EigenAnalysis
 from netlistdyn.circuit.netlist import Netlist
 from netlistdyn.circuit.sources import source_waveform
-from netlistdyn.circuit.waveforms import Exp, Sin, Waveform, check_breakpoints
+from netlistdyn.circuit.waveforms import Am, Exp, Sffm, Sin, Waveform, check_breakpoints
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: Linear interpolation error allowed on smooth inputs, relative to their amplitude.
@@ -167,6 +167,8 @@ def input_signals(netlist: Netlist, tstep: float, tstop: float) -> InputSignals:
         elif isinstance(w, Exp) and w.v1 != w.v2:
             assert w.tau1 is not None and w.tau2 is not None
             smooth = min(smooth, math.sqrt(8 * SMOOTH_INPUT_RTOL) * min(w.tau1, w.tau2))
+        elif isinstance(w, Am | Sffm) and w.rate:
+            smooth = min(smooth, math.sqrt(8 * SMOOTH_INPUT_RTOL) / w.rate)
     return InputSignals(waves, np.asarray(points), smooth)
 
 

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.netlist import GROUND, Diagnostic, Element, Kind, Netlist
-from netlistdyn.circuit.waveforms import Dc, Exp, Pulse, Pwl, Sin, Waveform
+from netlistdyn.circuit.waveforms import Am, Dc, Exp, Pulse, Pwl, Sffm, Sin, Waveform
 from netlistdyn.simulation.foh import InputSignals
 from netlistdyn.statespace.model import StateSpaceModel
 
@@ -318,8 +318,10 @@ def _offset(wave: Waveform, c: float) -> Waveform:
         return replace(wave, value=wave.value - c)
     if isinstance(wave, Pulse | Exp):
         return replace(wave, v1=wave.v1 - c, v2=wave.v2 - c)
-    if isinstance(wave, Sin):
+    if isinstance(wave, Sin | Sffm):
         return replace(wave, vo=wave.vo - c)
+    if isinstance(wave, Am):
+        return replace(wave, offset=wave.offset - c)
     if isinstance(wave, Pwl):
         return replace(wave, values=tuple(v - c for v in wave.values))
     raise TypeError(f"no offset for {type(wave).__name__}")
