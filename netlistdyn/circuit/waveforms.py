@@ -60,9 +60,9 @@ class Dc:
         return f"DC {self.value!r}"
 
 
-#: A time within this fraction of a PULSE period of a period boundary is read as on it (the
-#: boundary computed as TD + k·PER and the phase (t − TD)/PER differ by rounding only).
-PULSE_PHASE_SNAP = 1e-12
+#: A time within this many rounding units (of t − TD) of a PULSE period boundary is read as on
+#: it (the boundary computed as TD + k·PER and the phase (t − TD)/PER differ by rounding only).
+PULSE_PHASE_SNAP = 8
 
 
 def pulse_values(
@@ -95,12 +95,12 @@ def pulse_values(
     else:
         ncycles = p["ncycles"]
     local = np.asarray(t, dtype=float) - td
-    q = local / per
-    k = np.floor(q)
-    frac = q - k
-    snap = frac > 1.0 - PULSE_PHASE_SNAP
+    k = np.floor(local / per)
+    phase = local - k * per
+    slack = PULSE_PHASE_SNAP * np.finfo(float).eps * np.abs(local)
+    snap = phase > per - slack
     k = np.where(snap, k + 1, k)
-    phase = np.where(snap | (frac < PULSE_PHASE_SNAP), 0.0, local - k * per)
+    phase = np.where(snap | (phase < slack), 0.0, phase)
     if left:  # on a boundary (k ≥ 1) the left limit is where the previous period ended, at PER
         on_edge = (phase == 0.0) & (k >= 1)
         k = np.where(on_edge, k - 1, k)
