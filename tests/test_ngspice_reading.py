@@ -405,8 +405,8 @@ def test_lib_section(tmp_path) -> None:
 
 
 def test_pulse_defaults_and_period_wrapping() -> None:
-    # TR+PW+TF > PER (t = PER is read in the first period), PW = 0 (means TSTOP), and all
-    # defaults (PER = TSTOP: the value at TSTOP is the pulse's, not V1).
+    # TR+PW+TF > PER (each period is cut at PER: a jump back to V1 there), PW = 0 (means TSTOP),
+    # and all defaults (PER = TSTOP: the value at TSTOP is the pulse's, not V1).
     text = (
         "pulse\nV1 a 0 PULSE(0 1 0 3u 3u 5u 10u)\nR1 a 0 1\nV2 b 0 PULSE(0 1 1u 1u 1u 0 4u)\nR2 b 0 1\n"
         "V3 c 0 PULSE(0 2)\nR3 c 0 1\n.tran 1u 20u\n"
@@ -418,11 +418,18 @@ def test_pulse_defaults_and_period_wrapping() -> None:
         wave = net.element(name).waveform.resolved(net.tran.tstep, net.tran.tstop)
         per = wave.per
         # ngspice's own time points carry rounding (its last point is 1.99999999999999847e-05,
-        # not 2e-05); at an exact multiple k·PER (k ≥ 2) which period it lands in is an accident.
-        cycles = time / per
-        exact = (np.abs(cycles - np.round(cycles)) < 1e-9) & (np.round(cycles) >= 2)
+        # not 2e-05); at an exact multiple k·PER (k ≥ 1), where a cut period jumps back to V1,
+        # ngspice's point is the value before the jump (k = 1) or after it (k ≥ 2, an accident of
+        # rounding): there it must be one of the two limits.
+        cycles = (time - wave.td) / per
+        exact = (np.abs(cycles - np.round(cycles)) < 1e-9) & (np.round(cycles) >= 1)
         # 1e-9 of the 1-2 V swing: ngspice computes the same linear ramps in double precision.
         assert np.max(np.abs(wave(time[~exact]) - table[~exact, column])) < 1e-9, name
+        either = np.minimum(
+            np.abs(wave(time[exact]) - table[exact, column]),
+            np.abs(wave.left(time[exact]) - table[exact, column]),
+        )
+        assert np.all(either < 1e-9), name
 
 
 def test_pwl_td_and_repeat() -> None:

@@ -202,7 +202,7 @@ def test_linearisation_names_states_and_at() -> None:
     ("body", "message"),
     [
         ("D1 a 0 nomodel\n", "no .model nomodel"),
-        (".model dq D(IS=1e-14 BV=5)\nD1 a 0 dq\n", "BV"),
+        (".model dq D(IS=1e-14 CJSW=5p)\nD1 a 0 dq\n", "CJSW"),
         (".model dq NPN(IS=1e-14)\nD1 a 0 dq\n", "not D"),
         ("B1 a 0 V={v(zz)**2}\n", "v(zz) names no node"),
         ("B1 a 0 I={exp(v(a)) * foo}\n", "unknown parameter 'foo'"),

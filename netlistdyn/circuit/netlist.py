@@ -8,6 +8,7 @@ case-folded name used for look-ups (SPICE is case-insensitive).
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 
 from netlistdyn.base.errors import SourceLocation
@@ -70,6 +71,28 @@ class DiodeModel:
         Transit time (s): diffusion charge TT·I.
     FC : float
         Forward-bias depletion capacitance coefficient.
+    BV : float, optional
+        Reverse breakdown voltage (V); ``None``: no breakdown.
+    IBV : float
+        Current at the breakdown voltage (A).
+    NBV : float, optional
+        Breakdown emission coefficient (``None``: N).
+    IKF, IKR : float
+        Forward and reverse high-injection knee currents (A); ``inf``: none.
+    ISR : float
+        Recombination saturation current (A).
+    NR : float
+        Recombination emission coefficient.
+    EG : float
+        Activation energy (eV).
+    XTI : float
+        Saturation-current temperature exponent.
+    TNOM : float
+        Temperature the parameters were measured at (°C): the card's, else ``.options tnom``.
+    temp : float
+        The circuit temperature this instance sees (°C): ``.temp`` / ``.options temp``.
+    mult : float
+        The instance's multiplier M= (ngspice 39 scales IBV by it; the area factor includes it).
     """
 
     name: str
@@ -81,6 +104,18 @@ class DiodeModel:
     M: float = 0.5
     TT: float = 0.0
     FC: float = 0.5
+    BV: float | None = None
+    IBV: float = 1e-3
+    NBV: float | None = None
+    IKF: float = math.inf
+    IKR: float = math.inf
+    ISR: float = 0.0
+    NR: float = 2.0
+    EG: float = 1.11
+    XTI: float = 3.0
+    TNOM: float = 27.0
+    temp: float = 27.0
+    mult: float = 1.0
 
 
 @dataclass(frozen=True, slots=True)

@@ -465,7 +465,7 @@ def _binary(
 
 # ------------------------------------------------------------------------ diode
 
-#: Model parameters netlistdyn reads, with ngspice's aliases.
+#: Model parameters netlistdyn reads, with ngspice's aliases (ngspice 39's ``diompar``/``dio.c``).
 DIODE_PARAMS: dict[str, str] = {
     "is": "IS",
     "js": "IS",
@@ -480,9 +480,184 @@ DIODE_PARAMS: dict[str, str] = {
     "mj": "M",
     "tt": "TT",
     "fc": "FC",
+    "bv": "BV",
+    "ibv": "IBV",
+    "ib": "IBV",
+    "nbv": "NBV",
+    "ikf": "IKF",
+    "ik": "IKF",
+    "ikr": "IKR",
+    "isr": "ISR",
+    "nr": "NR",
+    "eg": "EG",
+    "xti": "XTI",
+    "tnom": "TNOM",
+    "tref": "TNOM",
 }
-#: Parameters accepted when they keep their default (no effect at 27 °C).
-DIODE_NEUTRAL: dict[str, float] = {"level": 1.0, "eg": 1.11, "xti": 3.0, "kf": 0.0, "af": 1.0, "tnom": 27.0}
+#: Parameters accepted when they keep their default (no effect).
+DIODE_NEUTRAL: dict[str, float] = {"level": 1.0}
+#: Parameters read and ignored, with the reason: they change no operating point, small-signal
+#: model or transient (flicker noise: netlistdyn has no noise analysis; safe-operating-area limits:
+#: ngspice only warns when they are exceeded).
+DIODE_IGNORED: dict[str, str] = {
+    "kf": "noise",
+    "af": "noise",
+    "fv_max": "safe operating area",
+    "bv_max": "safe operating area",
+    "id_max": "safe operating area",
+    "te_max": "safe operating area",
+    "pd_max": "safe operating area",
+    "d": "model type flag",
+}
+#: The other parameters of ngspice 39's diode (``dio.c``): they change its numbers and netlistdyn
+#: does not compute them, so a card that gives one is refused, naming it. A name ngspice does not
+#: know at all it ignores with a warning; so does netlistdyn.
+DIODE_REFUSED: frozenset[str] = frozenset(
+    {
+        "jsw", "ns", "trs", "trs1", "trs2", "ttt1", "ttt2", "tm1", "tm2", "cjp", "cjsw", "php",
+        "mjsw", "area", "pj", "tlev", "tlevc", "cta", "ctc", "ctp", "tpb", "tvj", "tphp", "jtun",
+        "jtunsw", "ntun", "xtitun", "keg", "fcs", "tcv", "cond", "temperature", "rth0", "cth0",
+        "lm", "lp", "wm", "wp", "xom", "xoi", "xm", "xp",
+    }
+)  # fmt: skip
+#: ngspice's IKF/IKR below this (CKTepsmin) disables the knee (with a warning).
+KNEE_EPSMIN = 1e-28
+
+#: Boltzmann's constant (J/K) and the electron charge (C), as ngspice 39's const.h.
+BOLTZMANN = 1.38064852e-23
+CHARGE = 1.6021766208e-19
+#: Kelvin at 0 °C (ngspice's CONSTCtoK).
+CELSIUS_TO_KELVIN = 273.15
+#: Most iterations ngspice 39's ``diotemp`` spends matching the breakdown knee to IBV.
+BREAKDOWN_ITERATIONS = 25
+
+
+@dataclass(frozen=True, slots=True)
+class Junction:
+    """One diode instance's junction as ngspice 39 computes it at the circuit temperature.
+
+    Currents and capacitances include the area factor (times the multiplier M=). ``math.inf``
+    disables BV (no breakdown) and IKF/IKR (no knee); ISR = 0 disables recombination.
+
+    Attributes
+    ----------
+    isat : float
+        Saturation current at the temperature (A).
+    n : float
+        Emission coefficient.
+    vt : float
+        Thermal voltage kT/q at the temperature (V).
+    bv : float
+        Breakdown voltage after matching the knee to IBV (ngspice's ``tBrkdwnV``) (V).
+    nbv : float
+        Breakdown emission coefficient.
+    ikf, ikr : float
+        Forward and reverse knee currents (A).
+    isr, nr : float
+        Recombination saturation current (A) and emission coefficient.
+    cjo, vj, m, fc, tt : float
+        Zero-bias capacitance (F), junction potential (V), grading coefficient, forward-bias
+        depletion coefficient and transit time (s), at the temperature.
+    """
+
+    isat: float
+    n: float
+    vt: float
+    bv: float = math.inf
+    nbv: float = 1.0
+    ikf: float = math.inf
+    ikr: float = math.inf
+    isr: float = 0.0
+    nr: float = 2.0
+    cjo: float = 0.0
+    vj: float = 1.0
+    m: float = 0.5
+    fc: float = 0.5
+    tt: float = 0.0
+
+    @property
+    def vte(self) -> float:
+        """N·kT/q (V)."""
+        return self.n * self.vt
+
+
+def _egfet(temp: float) -> float:
+    """Silicon band gap at ``temp`` (K) (eV), ngspice's formula."""
+    return 1.16 - (7.02e-4 * temp * temp) / (temp + 1108.0)
+
+
+def _pbfact(temp: float) -> float:
+    """ngspice's junction-potential temperature term at ``temp`` (K) (V)."""
+    arg = -_egfet(temp) / (2 * BOLTZMANN * temp) + 1.1150877 / (BOLTZMANN * (REFTEMP + REFTEMP))
+    return -2 * K_OVER_Q * temp * (1.5 * math.log(temp / REFTEMP) + CHARGE * arg)
+
+
+def junction(model: Any, area: float) -> Junction:
+    """A diode instance's junction at the circuit temperature, as ngspice 39's ``diotemp`` (level 1).
+
+    Parameters
+    ----------
+    model : DiodeModel
+        The ``.model`` card with the instance's temperature and multiplier.
+    area : float
+        Area factor times the multiplier M= (ngspice scales IS, ISR, IKF, IKR, CJO by it; RS
+        is divided by it); ngspice 39 scales IBV by the multiplier alone.
+    """
+    temp = model.temp + CELSIUS_TO_KELVIN
+    tnom = model.TNOM + CELSIUS_TO_KELVIN
+    vt = K_OVER_Q * temp
+    n, isat, isr, cjo, vj = model.N, model.IS * area, model.ISR * area, model.CJO * area, model.VJ
+    if temp != tnom:  # at TNOM every factor is 1: skipped, so the numbers stay exactly the model's
+        ratio = temp / tnom
+        isat *= math.exp((ratio - 1) * model.EG / (n * vt) + model.XTI / n * math.log(ratio))
+        isr *= math.exp((ratio - 1) * model.EG / (model.NR * vt) + model.XTI / model.NR * math.log(ratio))
+        fact1, fact2 = tnom / REFTEMP, temp / REFTEMP
+        pbo = (model.VJ - _pbfact(tnom)) / fact1
+        gmaold = (model.VJ - pbo) / pbo
+        cjo /= 1 + model.M * (400e-6 * (tnom - REFTEMP) - gmaold)
+        vj = _pbfact(temp) + fact2 * pbo
+        gmanew = (vj - pbo) / pbo
+        cjo *= 1 + model.M * (400e-6 * (temp - REFTEMP) - gmanew)
+    if model.FC * vj > 1.0:  # ngspice limits the junction potential to 1/FC
+        vj = 1.0 / model.FC
+    nbv = model.NBV if model.NBV is not None else n
+    bv = math.inf
+    if model.BV is not None:
+        bv = _breakdown_knee(model.BV, model.mult * model.IBV, isat, nbv, vt)
+    return Junction(
+        isat=isat,
+        n=n,
+        vt=vt,
+        bv=bv,
+        nbv=nbv,
+        ikf=model.IKF * area,
+        ikr=model.IKR * area,
+        isr=isr,
+        nr=model.NR,
+        cjo=cjo,
+        vj=vj,
+        m=model.M,
+        fc=model.FC,
+        tt=model.TT,
+    )
+
+
+def _breakdown_knee(bv: float, cbv: float, isat: float, nbv: float, vt: float) -> float:
+    """ngspice 39's ``tBrkdwnV``: the knee voltage at which the breakdown current is IBV (V).
+
+    ngspice iterates ``xbv = BV − NBV·vt·ln(IBV/IS + 1 − xbv/vt)`` until the current matches IBV to
+    its RELTOL; here to rounding (at most :data:`BREAKDOWN_ITERATIONS` steps each way), which is
+    ngspice's answer at a tight RELTOL.
+    """
+    if cbv < isat * bv / vt:
+        return bv
+    xbv = bv - nbv * vt * math.log(1 + cbv / isat)
+    for _ in range(4 * BREAKDOWN_ITERATIONS):
+        new = bv - nbv * vt * math.log(cbv / isat + 1 - xbv / vt)
+        if abs(new - xbv) <= 4 * math.ulp(abs(xbv)):
+            return new
+        xbv = new
+    return xbv
 
 
 def thermal_voltage(temp_k: float = REFTEMP) -> float:
@@ -573,6 +748,94 @@ def diode_current_array(
         current = np.where(forward, isat * (e - 1.0), -isat * (1.0 + arg)) + gmin * vd
         conductance = np.where(forward, isat * e / vte, isat * 3.0 * arg / safe) + gmin
     return current, conductance
+
+
+#: Fields of :class:`Junction` that :func:`junction_arrays` stacks.
+JUNCTION_FIELDS = ("isat", "n", "vt", "bv", "nbv", "ikf", "ikr", "isr", "nr", "cjo", "vj", "m", "fc", "tt")
+
+
+def junction_arrays(junctions: list[Junction]) -> dict[str, NDArray[np.float64]]:
+    """The junctions' parameters side by side (one array per :class:`Junction` field)."""
+    return {f: np.array([getattr(j, f) for j in junctions], dtype=float) for f in JUNCTION_FIELDS}
+
+
+def junction_current_array(
+    vd: NDArray[np.float64], p: dict[str, NDArray[np.float64]], gmin: float = GMIN
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Current (A) and conductance (S) of junctions as ngspice 39's ``dioload`` (level 1).
+
+    Forward (vd ≥ −3·N·vt): IS·(e^{vd/(N vt)} − 1), plus the recombination current
+    ISR·(e^{vd/(NR vt)} − 1)·((1 − vd/VJ)² + 0.005)^{M/2} when ISR is given; reverse: −IS·(1 +
+    (3 N vt/(e·vd))³); beyond the knee −BV: −IS·e^{−(BV + vd)/(NBV vt)}. Then the high-injection
+    knee IKF (forward) or IKR (reverse): I/(1 + √(I/IK)); then gmin·vd. The conductance is
+    ngspice's own expression (its recombination term is not the exact derivative: ngspice's
+    ``.ac`` uses it, and so does the small-signal model here).
+
+    Parameters
+    ----------
+    vd : numpy.ndarray
+        Junction voltages (V).
+    p : dict of numpy.ndarray
+        The junctions' parameters (:func:`junction_arrays`).
+    gmin : float
+        Conductance in parallel (S).
+    """
+    vd = np.asarray(vd, dtype=float)
+    isat, vt = p["isat"], p["vt"]
+    vte = p["n"] * vt
+    vtebrk = p["nbv"] * vt
+    forward = vd >= -3.0 * vte
+    breakdown = ~forward & (vd < -p["bv"])
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        x = np.where(forward, vd / vte, 0.0)
+        e = np.where(x < 709.0, np.exp(np.minimum(x, 709.0)), np.inf)
+        safe = np.where(forward, -1.0, vd)
+        arg = (3.0 * vte / (safe * math.e)) ** 3
+        xb = np.where(breakdown, -(p["bv"] + vd) / vtebrk, 0.0)
+        evrev = np.where(xb < 709.0, np.exp(np.minimum(xb, 709.0)), np.inf)
+        current = np.where(forward, isat * (e - 1.0), np.where(breakdown, -isat * evrev, -isat * (1.0 + arg)))
+        conductance = np.where(
+            forward, isat * e / vte, np.where(breakdown, isat * evrev / vtebrk, isat * 3.0 * arg / safe)
+        )
+        rec = forward & (p["isr"] > 0)
+        if np.any(rec):
+            vterec = p["nr"] * vt
+            erec = np.exp(np.minimum(np.where(rec, vd / vterec, 0.0), 709.0))
+            c_rec = p["isr"] * (erec - 1.0)
+            g_rec = p["isr"] * erec / vterec
+            base = 1.0 - vd / p["vj"]
+            t1 = base * base + 0.005
+            gen = t1 ** (p["m"] / 2)
+            gen_vd = -p["m"] * base * t1 ** (p["m"] / 2 - 1)
+            c_rec = c_rec * gen
+            g_rec = g_rec * gen + c_rec * gen_vd  # as ngspice 39 writes it
+            current = np.where(rec, current + c_rec, current)
+            conductance = np.where(rec, conductance + g_rec, conductance)
+        knee_f = forward & np.isfinite(p["ikf"]) & (current > 1e-18)
+        knee_r = ~forward & np.isfinite(p["ikr"]) & (current < -1e-18)
+        if np.any(knee_f | knee_r):
+            ik = np.where(knee_f, p["ikf"], np.where(knee_r, p["ikr"], 1.0))
+            ratio = np.where(knee_f, current / ik, np.where(knee_r, current / -ik, 1.0))
+            root = np.sqrt(ratio)
+            sign = np.where(knee_f, 1.0, -1.0)
+            g_knee = ((1 + root) * conductance - sign * current * conductance / (2 * root * ik)) / (
+                1 + 2 * root + sign * current / ik
+            )
+            kneed = knee_f | knee_r
+            conductance = np.where(kneed, g_knee, conductance)
+            current = np.where(kneed, current / (1 + root), current)
+    return current + gmin * vd, conductance + gmin
+
+
+def junction_current(vd: float, j: Junction, gmin: float = GMIN) -> tuple[float, float]:
+    """:func:`junction_current_array` for one junction: current (A) and conductance (S)."""
+    i, g = junction_current_array(np.array([vd]), junction_arrays([j]), gmin)
+    return float(i[0]), float(g[0])
+
+
+def junction_charge(vd: float, current: float, conductance: float, j: Junction) -> tuple[float, float]:
+    """:func:`diode_charge` with a junction's parameters: charge (C) and dQ/dV (F)."""
+    return diode_charge(vd, current, conductance, j.cjo, j.vj, j.m, j.tt, j.fc)
 
 
 def diode_charge_array(

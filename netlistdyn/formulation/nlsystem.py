@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.netlist import GROUND, Netlist
 from netlistdyn.circuit.sources import SourceValues, resolved_waveforms
-from netlistdyn.devices.models import diode_current_array
+from netlistdyn.devices.models import junction_current_array
 from netlistdyn.formulation.nonlinear import NonlinearCircuit
 
 
@@ -133,7 +133,7 @@ class NonlinearSystem:
         if self._lu is not None:  # linear given the states: one solve with the run's factorisation
             injected = np.zeros(c.size + 1)
             if c.diodes:
-                i, _ = diode_current_array(b[c._qbranch], c._qis, c._qn)
+                i, _ = junction_current_array(b[c._qbranch], c._qp)
                 np.add.at(injected, c._qa, i)
                 np.add.at(injected, c._qk, -i)
             z = self._solve_fixed(b - injected[: c.size])

@@ -55,11 +55,13 @@ from netlistdyn.devices.mechanics import state_prefix
 from netlistdyn.devices.models import (
     DISPLACEMENT,
     Behaviour,
-    diode_charge,
+    Junction,
     diode_charge_array,
-    diode_current,
-    diode_current_array,
-    thermal_voltage,
+    junction,
+    junction_arrays,
+    junction_charge,
+    junction_current,
+    junction_current_array,
 )
 from netlistdyn.devices.registry import REGISTRY
 from netlistdyn.devices.traits import BranchRef, ElementLaws
@@ -130,6 +132,7 @@ class _Diode:
     n: float
     charge_branch: int | None
     cjo: float
+    junction: Junction
 
 
 @dataclass(frozen=True)
@@ -292,8 +295,14 @@ def _series_sign(sense: Element, inductor: Element, netlist: Netlist) -> float |
     return None
 
 
-def _vte(model_n: float) -> float:
-    return model_n * thermal_voltage()
+def _pnjlim(vnew: float, vold: float, vte: float, vcrit: float) -> float:
+    """SPICE's junction limiting: a forward step above ``vcrit`` taken in the logarithm (V)."""
+    if vnew > vcrit and abs(vnew - vold) > 2 * vte:
+        if vold > 0:
+            arg = 1 + (vnew - vold) / vte
+            return vold + vte * math.log(arg) if arg > 0 else vcrit
+        return vte * math.log(vnew / vte)
+    return vnew
 
 
 #: Kinds whose law is linear (:func:`netlistdyn.formulation.formulate.element_laws` states it).
@@ -438,15 +447,17 @@ class NonlinearCircuit:
             if e.kind is Kind.DIODE:
                 model = e.diode
                 assert model is not None
+                jn = junction(model, e.value)
                 self.diodes.append(
                     _Diode(
                         e,
                         self._at(_junction_nodes(e)[0]),
                         self._at(e.nodes[1]),
-                        model.IS * e.value,
-                        model.N,
+                        jn.isat,
+                        jn.n,
                         self.branch_index.get(e.key + "#q"),
-                        model.CJO * e.value,
+                        jn.cjo,
+                        jn,
                     )
                 )
         first = n + len(self.branch_index)
@@ -572,29 +583,23 @@ class NonlinearCircuit:
 
         self._da = np.array([slot(d.anode) for d in self.diodes], dtype=np.intp)
         self._dk = np.array([slot(d.cathode) for d in self.diodes], dtype=np.intp)
-        self._dis = np.array([d.isat for d in self.diodes])
-        self._dn = np.array([d.n for d in self.diodes])
+        self._dp = junction_arrays([d.junction for d in self.diodes])
         rows = np.concatenate([self._da, self._da, self._dk, self._dk])
         cols = np.concatenate([self._da, self._dk, self._da, self._dk])
         self._dkeep = (rows < size) & (cols < size)
         self._drows, self._dcols = rows[self._dkeep], cols[self._dkeep]
         charged = self.charged_diodes
-        models = [d.element.diode for d in charged]
+        self._qp = junction_arrays([d.junction for d in charged])
         self._qa = np.array([slot(d.anode) for d in charged], dtype=np.intp)
         self._qk = np.array([slot(d.cathode) for d in charged], dtype=np.intp)
-        self._qis = np.array([d.isat for d in charged])
-        self._qn = np.array([d.n for d in charged])
-        self._qcjo = np.array([d.cjo for d in charged])
-        self._qvj = np.array([m.VJ for m in models if m is not None])
-        self._qm = np.array([m.M for m in models if m is not None])
-        self._qtt = np.array([m.TT for m in models if m is not None])
-        self._qfc = np.array([m.FC for m in models if m is not None])
+        self._qtt = self._qp["tt"]
         self._qbranch = np.array([d.charge_branch for d in charged], dtype=np.intp)
 
     def charge_of(self, vd: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Charge (C) and capacitance (F) of every charged junction at junction voltages ``vd``."""
-        i, g = diode_current_array(vd, self._qis, self._qn)
-        return diode_charge_array(vd, i, g, self._qcjo, self._qvj, self._qm, self._qtt, self._qfc)
+        p = self._qp
+        i, g = junction_current_array(vd, p)
+        return diode_charge_array(vd, i, g, p["cjo"], p["vj"], p["m"], p["tt"], p["fc"])
 
     def junction_voltages(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """The junction voltages (V) whose charges are ``q`` (C): Newton on the monotonic q(v)."""
@@ -604,13 +609,13 @@ class NonlinearCircuit:
             if self._vj_last is not None and self._vj_last.size == q.size
             else np.zeros(q.size)
         )
-        vte = self._qn * thermal_voltage()
+        vte = self._qp["n"] * self._qp["vt"]
         for _ in range(200):
             charge, cap = self.charge_of(v)
             new = v - (charge - q) / cap
             # exponential diffusion charge: forward steps in the logarithm; deep reverse: bounded steps
             new = np.where((new > v + 4 * vte) & (self._qtt > 0), v + 4 * vte, new)
-            deep = (self._qcjo > 0) & (new < v) & (new < -1e3 * self._qvj)
+            deep = (self._qp["cjo"] > 0) & (new < v) & (new < -1e3 * self._qp["vj"])
             new = np.where(deep, np.where(v < 0, np.maximum(new, 2 * v - 1.0), -1.0), new)
             done = np.abs(new - v) <= 1e-15 * np.maximum(1.0, np.abs(v))
             v = new
@@ -747,19 +752,17 @@ class NonlinearCircuit:
 
     def junction_voltage(self, d: _Diode, q: float) -> float:
         """The junction voltage (V) whose charge is ``q`` (C): Newton on q(v), monotonic."""
-        model = d.element.diode
-        assert model is not None
-        area = d.element.value
+        jn = d.junction
         v = 0.0
-        vte = _vte(d.n)
+        vte = jn.vte
         for _ in range(200):
-            i, g = diode_current(v, d.isat, d.n)
-            charge, cap = diode_charge(v, i, g, model.CJO * area, model.VJ, model.M, model.TT, model.FC)
+            i, g = junction_current(v, jn)
+            charge, cap = junction_charge(v, i, g, jn)
             step = (charge - q) / cap
             new = v - step
-            if new > v + 4 * vte and model.TT > 0:  # exponential diffusion charge: step in the log
+            if new > v + 4 * vte and jn.tt > 0:  # exponential diffusion charge: step in the log
                 new = v + 4 * vte
-            if model.CJO > 0 and new < v and new < -1e3 * model.VJ:
+            if jn.cjo > 0 and new < v and new < -1e3 * jn.vj:
                 new = max(new, 2 * v - 1.0) if v < 0 else -1.0
             if abs(new - v) <= 1e-15 * max(1.0, abs(v)):
                 return new
@@ -777,7 +780,7 @@ class NonlinearCircuit:
         if self.diodes:
             ext = np.append(z, 0.0)
             vd = ext[self._da] - ext[self._dk]
-            i, g = diode_current_array(vd, self._dis, self._dn)
+            i, g = junction_current_array(vd, self._dp)
             acc = np.zeros(self.size + 1)
             np.add.at(acc, self._da, i)
             np.add.at(acc, self._dk, -i)
@@ -868,16 +871,17 @@ class NonlinearCircuit:
             vold = self._junction_from_z(d, z)
             dv = (0.0 if d.anode is None else dz[d.anode]) - (0.0 if d.cathode is None else dz[d.cathode])
             vnew = vold + dv
-            vte = _vte(d.n)
+            jn = d.junction
+            vte = jn.vte
             vcrit = vte * math.log(vte / (math.sqrt(2.0) * d.isat))
-            if vnew > vcrit and abs(dv) > 2 * vte:
-                if vold > 0:
-                    arg = 1 + dv / vte
-                    limited = vold + vte * math.log(arg) if arg > 0 else vcrit
-                else:
-                    limited = vte * math.log(vnew / vte)
-                if dv != 0:
-                    alpha = min(alpha, max((limited - vold) / dv, 1e-6))
+            vtebrk = jn.nbv * jn.vt
+            if math.isfinite(jn.bv) and vnew < min(0.0, -jn.bv + 10 * vtebrk):
+                # in breakdown, ngspice limits the step of the mirrored junction −(vd + BV)
+                limited = -(_pnjlim(-(vnew + jn.bv), -(vold + jn.bv), vtebrk, vcrit) + jn.bv)
+            else:
+                limited = _pnjlim(vnew, vold, vte, vcrit)
+            if dv != 0 and limited != vnew:
+                alpha = min(alpha, max((limited - vold) / dv, 1e-6))
         return alpha
 
     def newton(
@@ -1026,7 +1030,7 @@ class NonlinearCircuit:
                 currents[law.name] = -terms / law.own
         for d in self.diodes:
             vd = self._junction_from_z(d, z)
-            i, _ = diode_current(vd, d.isat, d.n)
+            i, _ = junction_current(vd, d.junction)
             currents[d.element.key] = i + (0.0 if d.charge_branch is None else float(z[d.charge_branch]))
         for bh in self.behavioural:
             if bh.branch is None:
@@ -1050,11 +1054,9 @@ class NonlinearCircuit:
         x = [self.charge(e, self._v(z, e.nodes[0]) - self._v(z, e.nodes[1]))[0] for e in self.capacitors]
         x += [float(z[self.branch_index[e.key]]) for e in self.inductors]
         for d in self.charged_diodes:
-            model = d.element.diode
-            assert model is not None
             vd = self._junction_from_z(d, z)
-            i, g = diode_current(vd, d.isat, d.n)
-            x.append(diode_charge(vd, i, g, d.cjo, model.VJ, model.M, model.TT, model.FC)[0])
+            i, g = junction_current(vd, d.junction)
+            x.append(junction_charge(vd, i, g, d.junction)[0])
         x += [float(z[k]) for k in self.disp_index.values()]
         return np.array(x, dtype=float)
 

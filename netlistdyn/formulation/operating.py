@@ -17,7 +17,7 @@ from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.base.formatting import eng
 from netlistdyn.circuit.netlist import GROUND, STORAGE_KINDS, Diagnostic, Element, Kind, Netlist
 from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD
-from netlistdyn.devices.models import DISPLACEMENT, diode_charge, diode_current
+from netlistdyn.devices.models import DISPLACEMENT, junction_charge, junction_current
 from netlistdyn.devices.units import signal_units
 from netlistdyn.formulation.nlsystem import NonlinearSystem
 from netlistdyn.formulation.nonlinear import (
@@ -142,8 +142,8 @@ def linearise(netlist: Netlist, point: OperatingPoint) -> Netlist:
                 out.append(_series_resistance(e))
                 anode = _junction_nodes(e)[0]
             vd = circuit._junction_from_z(d, z)
-            i, g = diode_current(vd, d.isat, d.n)
-            _, cap = diode_charge(vd, i, g, d.cjo, model.VJ, model.M, model.TT, model.FC)
+            i, g = junction_current(vd, d.junction)
+            _, cap = junction_charge(vd, i, g, d.junction)
             out.append(Element(Kind.RESISTOR, f"{e.name}.gd", (anode, e.nodes[1]), 1.0 / g, e.loc))
             if cap > 0:
                 out.append(Element(Kind.CAPACITOR, e.name, (anode, e.nodes[1]), cap, e.loc))

@@ -1602,7 +1602,7 @@ def parse_text(
             opts = {f.lower() for f in _fields(line)[1:]}
             if opts & {"temp", "tnom"}:
                 warnings.append(
-                    Diagnostic(line.loc, f"{word} temp/tnom: used only with temperature coefficients")
+                    Diagnostic(line.loc, f"{word} temp/tnom: used by temperature coefficients, diodes")
                 )
                 temp, tnom = _options_temperature(line, values, temp, tnom)
             else:

@@ -292,7 +292,5 @@ def _atol(system: NonlinearSystem, times: NDArray[np.float64], rtol: float) -> N
     scale[:nc] = [abs(c.charge(e, 0.0)[1]) * vscale for e in c.capacitors]
     scale[nc:nl] = iscale
     for k, d in enumerate(c.charged_diodes):
-        model = d.element.diode
-        assert model is not None
-        scale[nl + k] = d.cjo * model.VJ + model.TT * iscale
+        scale[nl + k] = d.junction.cjo * d.junction.vj + d.junction.tt * iscale
     return np.maximum(rtol * 1e-3 * scale, 1e-300)
