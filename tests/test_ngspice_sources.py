@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 
 import netlistdyn
+from netlistdyn.base.errors import NetlistError
+from netlistdyn.formulation.compile import compile_netlist
 from netlistdyn.formulation.operating import operating_point
 from netlistdyn.frontend.parser import parse_text
 
@@ -116,3 +118,54 @@ def test_transient_against_ngspice(name: str) -> None:
     ours = np.interp(t, result.time, result.values[:, 0])
     err = np.abs(ours - ref).max() / np.abs(ref).max()
     assert err <= TRAN_RTOL, err
+
+
+# --- M= on a subcircuit instance ---------------------------------------------------------------
+
+#: A subcircuit with every element kind an instance multiplier meets: R, L divided, C (and
+#: C={...}), G, F, I and a diode's area multiplied, V, E, H, B, K left alone (ngspice 39).
+MULTIPLIED = (
+    "m\n.model dd D(IS=1e-12 CJO=2p BV=3 IBV=1m)\n"
+    ".subckt cell a b\nR1 a n1 1k\nC1 n1 b 1u\nL1 n1 n2 1m\nR2 n2 b 2k\nG1 a b n1 b 0.1m\n"
+    "Vs n2 n3 0\nR3 n3 b 3k\nF1 n1 b Vs 0.5\nH1 n4 b Vs 200\nR4 a n4 5k\nE1 n5 b n1 b 0.5\nR5 a n5 4k\n"
+    "I1 a b 0.1m\nD1 n1 b dd\nB1 n1 b I={0.1m*v(n1,b)}\nC2 n2 b C={2u}\n.ends\n"
+    ".subckt outer a b\nX1 a b cell m=2\nR7 a b 20k\n.ends\n"
+    "V1 in 0 DC 1 AC 1\nRs in x 100\nXX x 0 cell M = 10\nRt in y 200\nXY y 0 outer m={1.5*2}\n"
+)
+
+
+def test_subcircuit_instance_multiplier(tmp_path: Path) -> None:
+    """``XX x 0 cell M = 10``: op and .ac of every node as ngspice's, nested multipliers compose."""
+    from .test_nonlinear import _ngspice, _values
+
+    netlist = parse_text(MULTIPLIED + ".end\n")
+    point = operating_point(netlist)
+    blocks = [
+        _values(_ngspice(MULTIPLIED, [run, "echo BLOCK", "print all"], tmp_path))[0]
+        for run in ("op", "ac lin 1 1.5k 1.5k")
+    ]
+    nodes = [n for n in netlist.nodes if n in blocks[0]]
+    assert len(nodes) >= 12, nodes
+    for node in nodes:
+        ours, ref = point.voltages[node], blocks[0][node].real
+        assert abs(ours - ref) <= OP_RTOL * abs(ref) + OP_ATOL, (node, ours, ref)
+    model = compile_netlist(netlist, [f"v({n})" for n in nodes])
+    h = model.transfer_function(2j * np.pi * 1.5e3)[:, model.inputs.index("V1")]
+    for k, node in enumerate(nodes):
+        ref = blocks[1][node]
+        assert abs(complex(h[k]) - ref) <= 1e-7 * abs(ref) + 1e-12, (node, complex(h[k]), ref)
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("L1 a b 1m\nL2 c b 1m\nR1 c b 1\nK1 L1 L2 0.5\n", "K1 (COUPLING) is not supported"),
+        ("R1 a b 1k m=2\n", "R1: m= on an element inside a subcircuit instance that has m="),
+    ],
+)
+def test_subcircuit_multiplier_refusals(body: str, message: str) -> None:
+    text = f"m\n.subckt cell a b\n{body}.ends\nV1 in 0 1\nR0 in x 1k\nX1 x 0 cell m=3\n.end\n"
+    with pytest.raises(NetlistError) as info:
+        parse_text(text)
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)

@@ -581,6 +581,21 @@ class Random:
 Waveform = Dc | Pulse | Sin | Pwl | Exp | Am | Sffm | Random
 
 
+def scaled(wave: Waveform, factor: float) -> Waveform:
+    """The waveform times ``factor`` (the same shape and breakpoints): M= parallel current sources."""
+    if isinstance(wave, Dc):
+        return replace(wave, value=wave.value * factor)
+    if isinstance(wave, Pulse | Exp):
+        return replace(wave, v1=wave.v1 * factor, v2=wave.v2 * factor)
+    if isinstance(wave, Sin | Sffm):
+        return replace(wave, vo=wave.vo * factor, va=wave.va * factor)
+    if isinstance(wave, Am):
+        return replace(wave, va=wave.va * factor, offset=wave.offset * factor)
+    if isinstance(wave, Pwl):
+        return replace(wave, values=tuple(v * factor for v in wave.values))
+    raise wave._refuse()
+
+
 def breakpoint_limit() -> int:
     """The breakpoint limit: ``$NETLISTDYN_MAX_BREAKPOINTS`` when set to a positive integer."""
     import os

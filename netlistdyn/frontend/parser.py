@@ -50,7 +50,7 @@ from netlistdyn.circuit.netlist import (
     StepSpec,
     TranSpec,
 )
-from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin, Waveform
+from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin, Waveform, scaled
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
 from netlistdyn.devices.registry import REGISTRY, Registry
@@ -112,6 +112,8 @@ NONLINEAR_DEVICES = {
     "a": "an XSPICE code model",
     "n": "a numerical (OSDI/Verilog-A) device",
 }
+#: Letters of the transistors (ngspice's BJT, MOSFET, JFET, MESFET).
+TRANSISTORS = frozenset("qmjz")
 OTHER_UNSUPPORTED = {
     "t": "transmission line",
     "o": "lossy transmission line",
@@ -982,9 +984,12 @@ def _build_element(line: Line, ctx: _Context) -> list[Element]:
     if build is not None:
         return build(line, ctx)
     what = NONLINEAR_DEVICES.get(letter)
+    if what and letter in TRANSISTORS:
+        raise NetlistError(f"{name}: {what}: transistors are not supported yet", loc)
     if what:
         raise NetlistError(
-            f"{name}: {what} is a nonlinear device, not supported (netlistdyn compiles linear netlists only)",
+            f"{name}: {what} is not supported (netlistdyn compiles linear elements, diodes and "
+            "behavioural sources)",
             loc,
         )
     other = OTHER_UNSUPPORTED.get(letter)
@@ -1361,15 +1366,23 @@ def _expand_body(
     prefix: str,
     port_map: dict[str, str],
     depth: int,
+    multiplied: bool = False,
 ) -> None:
+    """Build the elements of ``body``; ``multiplied``: an enclosing instance has M=."""
     ctx = replace(build.ctx, values=values)
     for line in body:
         word = line.text.split(None, 1)[0].lower()
         if word.startswith("."):
             continue
         if word[0] == "x" and word not in KEYWORDS:
-            _expand_instance(build, line, values, owner, prefix, port_map, depth)
+            _expand_instance(build, line, values, owner, prefix, port_map, depth, multiplied)
             continue
+        if multiplied and _OWN_MULTIPLIER.search(line.text):
+            raise NetlistError(
+                f"{line.text.split(None, 1)[0]}: m= on an element inside a subcircuit instance that has "
+                "m= (ngspice 39 replaces the element's by the instance's): not supported",
+                line.loc,
+            )
         built = _build_element(line, ctx)
         if prefix:
             built = [_rename(e, prefix, port_map, build.globals_) for e in built]
@@ -1384,6 +1397,7 @@ def _expand_instance(
     prefix: str,
     port_map: dict[str, str],
     depth: int,
+    multiplied: bool = False,
 ) -> None:
     fields = _fields(line)
     name = fields[0]
@@ -1403,10 +1417,20 @@ def _expand_instance(
     # expression naming its own parameter (r={r*2}) means the caller's value.
     overrides: dict[str, float] = {}
     given: list[_Definition] = []
+    multiplier, given_m = 1.0, False
     if tail:
         known = {d.name.lower() for d in sub.defaults}
         for pname, expr in param_assignments(tail, line.loc, name):
             key = pname.lower()
+            if key == "m" and key not in known:  # ngspice's instance multiplier: m copies in parallel
+                try:
+                    multiplier = evaluate(parse(_value_expression(expr)), values.params, values.functions)
+                except ExpressionError as exc:
+                    raise NetlistError(f"{name} m: {exc}", line.loc) from None
+                if not multiplier > 0:
+                    raise NetlistError(f"{name}: m must be positive, got {multiplier:g}", line.loc)
+                given_m = True
+                continue
             if key not in known:
                 raise NetlistError(f"{name}: subcircuit {sub.name} has no parameter {pname}", line.loc)
             text = _value_expression(expr)
@@ -1439,7 +1463,69 @@ def _expand_instance(
     outer = [_map_node(canonical_node(n), prefix, port_map, build.globals_) for n in nodes]
     inner_prefix = f"{prefix}.{name}" if prefix else name
     inner_ports = dict(zip(sub.ports, outer, strict=True))
-    _expand_body(build, sub.body, values.scoped(scope), sub, inner_prefix, inner_ports, depth + 1)
+    # ngspice 39 writes an instance's m= onto every line of its body, replacing theirs: the
+    # outermost m= wins over the m= of instances (and elements) inside it (measured).
+    applies = given_m and not multiplied
+    first = len(build.elements)
+    _expand_body(
+        build,
+        sub.body,
+        values.scoped(scope),
+        sub,
+        inner_prefix,
+        inner_ports,
+        depth + 1,
+        multiplied or given_m,
+    )
+    if applies and multiplier != 1.0:
+        build.elements[first:] = [_multiplied(e, multiplier, name) for e in build.elements[first:]]
+
+
+#: An element's own ``m=`` (or ``M =``) keyword on its line.
+_OWN_MULTIPLIER = re.compile(r"(?i)(?<![\w.{(])m\s*=")
+#: Element kinds an instance multiplier M= scales, as ngspice 39 does (measured: R and L divided,
+#: C (also C={...}), G, F, I and the diode's area multiplied); V, E, H, B sources (and E/G
+#: value=) and transformers are not scaled. A coupling K between multiplied inductors is not what
+#: k·√(L1·L2/m²) gives (measured): refused.
+_MULTIPLIED = {
+    Kind.RESISTOR: -1,
+    Kind.INDUCTOR: -1,
+    Kind.CAPACITOR: 1,
+    Kind.VCCS: 1,
+    Kind.CCCS: 1,
+    Kind.ISOURCE: 1,
+}
+_NOT_MULTIPLIED = frozenset(
+    {Kind.VSOURCE, Kind.VCVS, Kind.CCVS, Kind.TRANSFORMER, Kind.BVOLTAGE, Kind.BCURRENT}
+)
+
+
+def _multiplied(element: Element, m: float, instance: str) -> Element:
+    """``element`` of a subcircuit instance with ``M=m``: m copies in parallel, as ngspice 39 reads it."""
+    kind = element.kind
+    if element.keyword is not None:
+        raise NetlistError(
+            f"{instance}: m= on an instance holding the mechanical {element.label}", element.loc
+        )
+    if kind in _NOT_MULTIPLIED or (element.expression is not None and kind in _MULTIPLIED):
+        return element  # behavioural terms (B, E/G value=) are not scaled by ngspice either
+    if kind in _MULTIPLIED:
+        value = element.value * m if _MULTIPLIED[kind] > 0 else element.value / m
+        waveform = element.waveform
+        if waveform is not None:
+            waveform = scaled(waveform, m)
+        return replace(element, value=value, waveform=waveform)
+    if kind is Kind.DIODE:
+        assert element.diode is not None
+        return replace(
+            element, value=element.value * m, diode=replace(element.diode, mult=element.diode.mult * m)
+        )
+    if kind is Kind.CAPACITANCE:
+        return replace(element, expression=f"({m!r})*({element.expression})")
+    raise NetlistError(
+        f"{instance}: m= on a subcircuit instance holding {element.label} ({kind.name}) is not supported",
+        element.loc,
+    )
 
 
 def _map_node(n: str, prefix: str, port_map: dict[str, str], globals_: frozenset[str]) -> str:
