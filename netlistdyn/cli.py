@@ -701,7 +701,8 @@ def validate(
     """Run NETLIST through ngspice and the compiled model and compare the responses.
 
     Exit status 0 when every output agrees within --rtol of its peak, 3 when not,
-    4 when ngspice is missing or unusable, 5 when it ran out of --timeout.
+    4 when ngspice is missing or unusable or fails on the file (inconclusive), 5 when it ran
+    out of --timeout.
     """
     from netlistdyn.spice.ngspice import ngspice_missing
 
@@ -747,6 +748,8 @@ def validate(
             emit(to_json(validation_dict(report, result.title, result.reference_accuracy)), out)
         else:
             emit(validation_text(report, result.title), out)
+        if not report.spice.ok:  # inconclusive: ngspice itself failed on the file
+            return EXIT_NO_NGSPICE
         return 0 if report.passed else EXIT_MISMATCH
 
     run_guarded(body)

@@ -732,7 +732,7 @@ def _read_ascii_raw(path: str) -> list[dict[str, NDArray[np.complex128]]]:
 
 def run_original(
     path: str,
-    sources: Sequence[tuple[str, float, float]],
+    sources: Sequence[tuple[str, float | None, float]],
     frequencies: Sequence[float],
     params: dict[str, float] | None = None,
     timeout: float = 60.0,
@@ -746,7 +746,7 @@ def run_original(
         removed from a temporary copy so that its own analyses do not run).
     sources : sequence of (str, float, float)
         ngspice instance name of every independent source, its DC value (V or
-        A) and its AC magnitude, set with ``alter`` before the analyses.
+        A; ``None``: the file's own) and its AC magnitude, set with ``alter`` before the analyses.
     frequencies : sequence of float
         ``ac`` frequencies (Hz).
     params : dict, optional
@@ -779,7 +779,9 @@ def run_original(
         if params:
             cmds.append("reset")
         for name, dc, ac in sources:
-            cmds += [f"alter @{name}[dc]={dc:.17g}", f"alter @{name}[acmag]={ac:.17g}"]
+            if dc is not None:
+                cmds.append(f"alter @{name}[dc]={dc:.17g}")
+            cmds.append(f"alter @{name}[acmag]={ac:.17g}")
         cmds += ["set filetype=ascii", "op", f"write {tmp}/op.raw"]
         for k, f in enumerate(frequencies):
             cmds += [f"ac lin 1 {f:.17g} {f:.17g}", f"write {tmp}/ac{k}.raw"]

@@ -9,6 +9,7 @@ points. ngspice is run tight enough to be a reference (see
 
 from __future__ import annotations
 
+import cmath
 import math
 import time
 from collections.abc import Sequence
@@ -20,6 +21,7 @@ import numpy as np
 from netlistdyn.analysis.eigen import EigenAnalysis
 from netlistdyn.circuit.netlist import Netlist
 from netlistdyn.circuit.probes import Probe
+from netlistdyn.formulation.operating import operating_point
 from netlistdyn.simulation.foh import Horizon, input_signals, propagate_foh
 from netlistdyn.simulation.initial import around_equilibrium, transient_start
 from netlistdyn.spice.ngspice import (
@@ -55,6 +57,9 @@ PZ_MAX_STATES = 6
 #: (ngspice prints 16 digits), so 1e-6 leaves room for rounding only, while any
 #: misread value or connection changes the answer by far more.
 ORIGINAL_RTOL = 1e-6
+#: ngspice 39's defaults of vntol (V) and abstol (A), when a run does not set them.
+NGSPICE_VNTOL = 1e-6
+NGSPICE_ABSTOL = 1e-12
 
 
 @dataclass(frozen=True, slots=True)
@@ -341,18 +346,10 @@ def compare(
         diff = ours[:, j] - run.outputs[probe.name]
         peak = peaks[probe.name]
         max_abs = float(np.max(np.abs(diff))) if diff.size else 0.0
-        # An output far below the others of its kind (a bridge's balanced difference: zero in
-        # theory, rounding noise in both simulators) is judged against 1e-9 of the largest.
         largest = max((peaks[p.name] for p in probes if p.kind == probe.kind), default=0.0)
-        scale = max(peak, 1e-9 * largest)
-        if scale == 0:
-            scale = 1.0
-            notes.append(f"{probe.name} is identically zero in ngspice: its error is absolute")
-        elif peak < 1e-9 * largest:
-            notes.append(
-                f"{probe.name} stays below 1e-9 of the largest output of its kind: its error is "
-                f"measured against that floor ({scale:.3g})"
-            )
+        scale, note = error_scale(probe.name, probe.kind, peak, largest, max_abs, settings, rtol)
+        if note:
+            notes.append(note)
         rms = float(np.sqrt(np.mean(diff**2)))
         comparisons.append(OutputComparison(probe.name, peak, max_abs, max_abs / scale, rms))
     return ValidationReport(
@@ -367,6 +364,48 @@ def compare(
         ours,
         tuple(notes),
     )
+
+
+def error_scale(
+    name: str, kind: str, peak: float, largest: float, max_abs: float, settings: SpiceSettings, rtol: float
+) -> tuple[float, str]:
+    """What an output's error is divided by, and the note that says why when it is not its peak.
+
+    An output far below the others of its kind (a bridge's balanced difference: zero in theory,
+    rounding noise in both simulators) is judged against 1e-9 of the largest. ngspice resolves a
+    node voltage only to its vntol and a current to its abstol: an error within that is as good as
+    ngspice's own answer, however small the output's peak, and is judged against it (the scale
+    becomes tolerance/rtol).
+
+    Parameters
+    ----------
+    name, kind : str
+        The output's name and kind (``v``, ``i``...).
+    peak, largest : float
+        The output's peak and the largest peak of its kind (output units).
+    max_abs : float
+        Its largest difference from ngspice (output units).
+    settings : SpiceSettings
+        ngspice's run (its vntol, V, and abstol, A).
+    rtol : float
+        The pass threshold.
+    """
+    scale = max(peak, 1e-9 * largest)
+    floor = {"v": settings.vntol or NGSPICE_VNTOL, "i": settings.abstol or NGSPICE_ABSTOL}.get(kind)
+    if floor is not None and 0 < max_abs <= floor and max_abs > rtol * scale:
+        word = "vntol" if kind == "v" else "abstol"
+        return floor / rtol, (
+            f"{name}: its difference {max_abs:.2g} is within ngspice's own {word} ({floor:g}): "
+            "judged against it"
+        )
+    if scale == 0:
+        return 1.0, f"{name} is identically zero in ngspice: its error is absolute"
+    if peak < 1e-9 * largest:
+        return scale, (
+            f"{name} stays below 1e-9 of the largest output of its kind: its error is measured against "
+            f"that floor ({scale:.3g})"
+        )
+    return scale, ""
 
 
 def compare_poles(netlist: Netlist, eig: EigenAnalysis, probes: Sequence[Probe]) -> PoleComparison | None:
@@ -456,18 +495,35 @@ def check_original(
     """
     if any(e.keyword for e in netlist.elements):
         return OriginalCheck(False, message="original file not run by ngspice: it has mechanical elements")
-    if netlist.is_nonlinear:  # op and ac of a nonlinear circuit depend on the source values this check sets
-        return OriginalCheck(False, message="original file not run by ngspice: the netlist is nonlinear")
     inputs = list(model.inputs)
     if not inputs:
         return OriginalCheck(False, message="original file not run by ngspice: no independent source")
-    dc = np.array([1.0 + 0.37 * k for k in range(len(inputs))])
-    ac = np.array([0.5 + 0.29 * k for k in range(len(inputs))])
-    names = [ngspice_source_name(n) for n in inputs]
+    # A behavioural source's constant (B1 1 0 v = {10*10}) is an input of the model that ngspice
+    # cannot alter: it keeps its own value at the operating point and 0 in .ac.
+    by_name = {e.name: e for e in netlist.sources}
+    fixed = [by_name[n].expression is not None if n in by_name else False for n in inputs]
+    nonlinear = netlist.is_nonlinear
+    dc = np.array(
+        [
+            by_name[n].value if (nonlinear or fix) and n in by_name else 1.0 + 0.37 * k
+            for k, (n, fix) in enumerate(zip(inputs, fixed, strict=True))
+        ]
+    )
+    ac = np.array([0.0 if fix else 0.5 + 0.29 * k for k, fix in enumerate(fixed)])
+    # A nonlinear circuit's operating point depends on its sources' values: they keep the file's
+    # own (a SIN without DC is its value at t = 0: the reading compared here), only AC is set.
+    alter = [
+        (ngspice_source_name(n), None if nonlinear else float(dc[k]), float(ac[k]))
+        for k, n in enumerate(inputs)
+        if not fixed[k]
+    ]
     freqs = _original_frequencies(eig)
-    run = run_original(path, list(zip(names, dc, ac, strict=True)), freqs, params, timeout)
+    run = run_original(path, alter, freqs, params, timeout)
     if not run.ok:
         return OriginalCheck(False, message=f"ngspice could not run the original file: {run.message}")
+    point = None
+    if nonlinear:
+        point = operating_point(netlist)
 
     def vector(probe: Probe, values: dict[str, Any]) -> complex | None:
         if probe.kind == "v":
@@ -490,13 +546,16 @@ def check_original(
         cases.append((0j, dc, run.op))
     for s, u, values in cases:
         try:
-            ours = model.transfer_function(s) @ u
+            if point is not None and s == 0:  # the nonlinear circuit's own operating point
+                ours = np.array([_at_point(probe, point) for probe in probes], dtype=complex)
+            else:
+                ours = model.transfer_function(s) @ u
         except np.linalg.LinAlgError:
             continue  # no DC solution of the model (ngspice's op then has none either)
-        pairs = {"v": [], "i": []}
+        pairs: dict[str, list[tuple[complex, complex]]] = {"v": [], "i": []}
         for j, probe in enumerate(probes):
             theirs = vector(probe, values)
-            if theirs is not None and probe.kind in pairs:
+            if theirs is not None and probe.kind in pairs and not cmath.isnan(complex(ours[j])):
                 pairs[probe.kind].append((complex(ours[j]), complex(theirs)))
         for group in pairs.values():
             scale = max((abs(b) for _, b in group), default=0.0)
@@ -513,6 +572,17 @@ def check_original(
         f"worst relative difference {worst:.2g}: {verdict}"
     )
     return OriginalCheck(True, worst, compared, message)
+
+
+def _at_point(probe: Probe, point: Any) -> complex:
+    """A v or i probe's value at a nonlinear operating point (NaN for another kind: not compared)."""
+    if probe.kind == "v":
+        return complex(
+            sum(sign * point.voltages.get(n, 0.0) for n, sign in zip(probe.nodes, (1, -1), strict=True))
+        )
+    if probe.kind == "i" and probe.element is not None and probe.element.lower() in point.currents:
+        return complex(point.currents[probe.element.lower()])
+    return complex(math.nan)
 
 
 def with_original_check(
