@@ -45,6 +45,9 @@ RC = "V1 in 0 1\nR1 in a 1k\nC1 a 0 1u\n"
 # that ngspice reads it; internal nodes carry a dot so that they are not compared.
 EQUIVALENT: dict[str, bytes] = {
     "ltspice_rser": b"r\nV1 in 0 1\nR1 in a 10\nL1 a l1.ser 1m\nRL1ser l1.ser b 0.5\nC1 b 0 1u\n",
+    "ltspice_source_rser_cpar": (
+        b"r\nV1 v1.rser 0 1\nRV1ser in v1.rser 0.5\nCV1par in 0 1n\nR1 in a 1k\nC1 a 0 1u\n"
+    ),
     "value_keyword": b"k\nV1 in 0 1\nR1 in a {2*500}\nC1 a 0 1u\n",
     "tran_one_argument": b"t\n" + RC.encode(),
     "step_param": b"s\n.param rr=1k\nV1 in 0 1\nR1 in a {rr}\nC1 a 0 1u\n",
@@ -72,6 +75,20 @@ PROBES: dict[str, tuple[bytes, str]] = {
     "formfeed_in_comment": (b"f\n* note \x0c R9 in 0 1\n" + RC.encode(), "agree"),
     "u2028_in_comment": ("f\n* note \u2028R9 in 0 1\n".encode() + RC.encode(), "agree"),
     "ltspice_rser": (b"r\nV1 in 0 1\nR1 in a 10\nL1 a b 1m Rser=0.5\nC1 b 0 1u\n", "other-simulator"),
+    "ltspice_source_rser_cpar": (
+        b"r\nV1 in 0 1 Rser=0.5 Cpar=1n\nR1 in a 1k\nC1 a 0 1u\n",
+        "other-simulator",
+    ),
+    # issue #27: source forms (their transients and operating points: tests/test_ngspice_sources.py)
+    "sin_seven_values": (b"s\nV1 in 0 SIN( 0 1 200 0 0 0 0 )\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "am_source": (b"a\nV1 in 0 AM(1 0.5 100 1k 1m 30 60)\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "sffm_source": (b"f\nV1 in 0 SFFM(0.1 1 1k 2 100)\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "pulse_ncycles": (b"p\nV1 in 0 PULSE(0 1 0 1m 1m 1m 4m 2)\nR1 in a 1k\nC1 a 0 1u\n", "agree"),
+    "subckt_instance_m": (
+        b"m\n.subckt rc a b\nR1 a b 1k\nC1 b 0 1u\nL1 b 0 1m\n.ends\nV1 in 0 1\nX1 in out rc M = 10\n"
+        b"R2 out 0 1k\n",
+        "agree",
+    ),
     "subckt_params": (
         b"p\n.subckt rc a b params: r=1k c=1n\nR1 a b {r}\nC1 b 0 {c}\n.ends\n"
         b"V1 in 0 1\nX1 in m rc r=2k\nX2 m out rc c={2n}\n",

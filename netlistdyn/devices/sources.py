@@ -25,8 +25,13 @@ def build_source(line: CardLine, ctx: CardContext) -> list[Element]:
         raise NetlistError(f"{name}: expected 2 nodes", loc)
     kind = Kind.VSOURCE if letter == "v" else Kind.ISOURCE
     nodes = (canonical_node(fields[1]), canonical_node(fields[2]))
-    dc, waveform, z0 = ctx.source(fields[3:], loc, name)
+    rest, parasitics = _ltspice_parasitics(fields[3:]) if kind is Kind.VSOURCE else (fields[3:], {})
+    dc, waveform, z0 = ctx.source(rest, loc, name)
     source = Element(kind, name, nodes, dc, loc, waveform=waveform)
+    if parasitics:
+        if z0 is not None:
+            raise NetlistError(f"{name}: Rser=/Cpar= together with portnum", loc)
+        return _with_parasitics(source, parasitics, ctx)
     if z0 is None:
         return [source]
     if kind is Kind.ISOURCE:
@@ -36,6 +41,49 @@ def build_source(line: CardLine, ctx: CardContext) -> list[Element]:
         replace(source, nodes=(inner, nodes[1])),
         Element(Kind.RESISTOR, f"{name}.z0", (nodes[0], inner), z0, loc),
     ]
+
+
+#: LTspice's parasitics of a voltage source: Rser= in series, Cpar= across its terminals.
+LTSPICE_SOURCE_PARASITICS = ("rser", "cpar")
+
+
+def _ltspice_parasitics(fields: list[str]) -> tuple[list[str], dict[str, str]]:
+    """The source's fields without ``Rser=``/``Cpar=`` (LTspice's), and those values."""
+    rest: list[str] = []
+    found: dict[str, str] = {}
+    k = 0
+    while k < len(fields):
+        word = fields[k].lower()
+        if word in LTSPICE_SOURCE_PARASITICS and fields[k + 1 : k + 2] == ["="]:
+            if k + 2 >= len(fields):
+                return fields, {}  # ctx.source refuses it: "Rser= has no value"
+            found[word] = fields[k + 2]
+            k += 3
+            continue
+        rest.append(fields[k])
+        k += 1
+    return rest, found
+
+
+def _with_parasitics(source: Element, parasitics: dict[str, str], ctx: CardContext) -> list[Element]:
+    """An LTspice voltage source with ``Rser=`` (a resistor from n+ to the source) and ``Cpar=``
+    (a capacitor across n+ and n−), as LTspice means them."""
+    loc, name = source.loc, source.name
+    values = {k: ctx.values.number(v, loc, f"{name} {k}") for k, v in parasitics.items()}
+    plus, minus = source.nodes
+    out = [source]
+    if values.get("rser"):
+        inner = f"{source.key}.rser"
+        out = [
+            replace(source, nodes=(inner, minus)),
+            Element(Kind.RESISTOR, f"{name}.Rser", (plus, inner), values["rser"], loc),
+        ]
+    if values.get("cpar"):
+        out.append(Element(Kind.CAPACITOR, f"{name}.Cpar", (plus, minus), values["cpar"], loc))
+    for extra in out[1:]:
+        if extra.value <= 0:
+            raise NetlistError(f"{extra.label}: value must be positive, got {extra.value:g}", loc)
+    return out
 
 
 def vsource_law(
