@@ -736,6 +736,9 @@ def run_original(
     frequencies: Sequence[float],
     params: dict[str, float] | None = None,
     timeout: float = 60.0,
+    separate: bool = False,
+    op: bool = True,
+    options: str = "",
 ) -> OriginalRun:
     """Run the ngspice binary on the user's file: ``op`` and ``ac`` with chosen source values.
 
@@ -752,7 +755,14 @@ def run_original(
     params : dict, optional
         ``.param`` overrides, applied with ``alterparam`` and ``reset``.
     timeout : float
-        Seconds allowed to ngspice.
+        Seconds allowed to ngspice (per session).
+    separate : bool
+        Each analysis in its own ngspice session: ngspice 39 applies a diode's ``m=`` once more
+        at each further analysis of a session (measured), so a nonlinear file needs this.
+    op : bool
+        Run ``op`` (before the ``ac`` analyses).
+    options : str
+        ngspice ``option`` settings for the analyses (``reltol=1e-9 ...``); empty: the file's.
 
     Returns
     -------
@@ -762,6 +772,18 @@ def run_original(
     import shutil
     import subprocess
     import tempfile
+
+    if separate and frequencies:
+        first = run_original(path, sources, frequencies[:1], params, timeout, options=options)
+        if not first.ok:
+            return first
+        ac = {}
+        for f in frequencies:
+            alone = run_original(path, sources, [f], params, timeout, op=False, options=options)
+            if not alone.ok:
+                return alone
+            ac.update(alone.ac)
+        return OriginalRun(True, "", first.op, ac)
 
     binary = shutil.which("ngspice")
     if binary is None:
@@ -782,7 +804,9 @@ def run_original(
             if dc is not None:
                 cmds.append(f"alter @{name}[dc]={dc:.17g}")
             cmds.append(f"alter @{name}[acmag]={ac:.17g}")
-        cmds += ["set filetype=ascii", "op", f"write {tmp}/op.raw"]
+        if options:
+            cmds.append(f"option {options}")
+        cmds += ["set filetype=ascii", *(("op", f"write {tmp}/op.raw") if op else ())]
         for k, f in enumerate(frequencies):
             cmds += [f"ac lin 1 {f:.17g} {f:.17g}", f"write {tmp}/ac{k}.raw"]
         script = "\n".join([*cmds, "quit", ""])

@@ -57,6 +57,9 @@ PZ_MAX_STATES = 6
 #: (ngspice prints 16 digits), so 1e-6 leaves room for rounding only, while any
 #: misread value or connection changes the answer by far more.
 ORIGINAL_RTOL = 1e-6
+#: ngspice's tolerances for the original-file check of a nonlinear netlist: vntol (V), abstol (A).
+NGSPICE_TIGHT_VNTOL = 1e-12
+NGSPICE_TIGHT_ABSTOL = 1e-15
 #: ngspice 39's defaults of vntol (V) and abstol (A), when a run does not set them.
 NGSPICE_VNTOL = 1e-6
 NGSPICE_ABSTOL = 1e-12
@@ -518,7 +521,10 @@ def check_original(
         if not fixed[k]
     ]
     freqs = _original_frequencies(eig)
-    run = run_original(path, alter, freqs, params, timeout)
+    # A nonlinear operating point is Newton's, converged to ngspice's tolerances (and its diode
+    # breakdown knee to its reltol): ngspice runs at reltol 1e-9 for this check.
+    tight = f"reltol=1e-9 abstol={NGSPICE_TIGHT_ABSTOL:g} vntol={NGSPICE_TIGHT_VNTOL:g}" if nonlinear else ""
+    run = run_original(path, alter, freqs, params, timeout, separate=nonlinear, options=tight)
     if not run.ok:
         return OriginalCheck(False, message=f"ngspice could not run the original file: {run.message}")
     point = None
