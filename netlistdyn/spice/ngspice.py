@@ -737,7 +737,7 @@ def run_original(
     params: dict[str, float] | None = None,
     timeout: float = 60.0,
     separate: bool = False,
-    op: bool = True,
+    with_op: bool = True,
     options: str = "",
 ) -> OriginalRun:
     """Run the ngspice binary on the user's file: ``op`` and ``ac`` with chosen source values.
@@ -759,7 +759,7 @@ def run_original(
     separate : bool
         Each analysis in its own ngspice session: ngspice 39 applies a diode's ``m=`` once more
         at each further analysis of a session (measured), so a nonlinear file needs this.
-    op : bool
+    with_op : bool
         Run ``op`` (before the ``ac`` analyses).
     options : str
         ngspice ``option`` settings for the analyses (``reltol=1e-9 ...``); empty: the file's.
@@ -777,13 +777,13 @@ def run_original(
         first = run_original(path, sources, frequencies[:1], params, timeout, options=options)
         if not first.ok:
             return first
-        ac = {}
+        merged: dict[float, dict[str, complex]] = {}
         for f in frequencies:
-            alone = run_original(path, sources, [f], params, timeout, op=False, options=options)
+            alone = run_original(path, sources, [f], params, timeout, with_op=False, options=options)
             if not alone.ok:
                 return alone
-            ac.update(alone.ac)
-        return OriginalRun(True, "", first.op, ac)
+            merged.update(alone.ac)
+        return OriginalRun(True, "", first.op, merged)
 
     binary = shutil.which("ngspice")
     if binary is None:
@@ -806,7 +806,7 @@ def run_original(
             cmds.append(f"alter @{name}[acmag]={ac:.17g}")
         if options:
             cmds.append(f"option {options}")
-        cmds += ["set filetype=ascii", *(("op", f"write {tmp}/op.raw") if op else ())]
+        cmds += ["set filetype=ascii", *(("op", f"write {tmp}/op.raw") if with_op else ())]
         for k, f in enumerate(frequencies):
             cmds += [f"ac lin 1 {f:.17g} {f:.17g}", f"write {tmp}/ac{k}.raw"]
         script = "\n".join([*cmds, "quit", ""])
