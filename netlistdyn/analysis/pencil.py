@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,6 +134,30 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / norm if norm > 0 and np.isfinite(norm) else v
 
 
+def _inverse_iteration(
+    solve: Callable[[np.ndarray], np.ndarray], apply: Callable[[np.ndarray], np.ndarray], start: np.ndarray
+) -> np.ndarray:
+    """Two steps of inverse iteration, returning the iterate with the smaller residual ‖S v‖.
+
+    A second step from an iterate that is already a null vector to working
+    precision can cancel exactly: the right-hand side then has no component
+    left for the small pivot to amplify, and the solve returns a vector of
+    the other directions (a left null vector [1e-7, 7e-18, 1] came back as
+    [0, 7e-18, 1], and zᴴEw with it was 1e-37 instead of 1e-7). The residual
+    tells the two apart; the better iterate is kept.
+    """
+    best, best_residual = _unit(start), math.inf
+    v = best
+    for _ in range(2):
+        v = _unit(solve(v))
+        residual = float(np.linalg.norm(apply(v)))
+        if not np.all(np.isfinite(v)) or not math.isfinite(residual):
+            break
+        if residual < best_residual:
+            best, best_residual = v, residual
+    return best
+
+
 def _pair(
     G: sp.csr_array,
     E: sp.csr_array,
@@ -167,11 +191,12 @@ def _pair(
     # w = C y and z = R x. In the unscaled matrix, rows of 1e-15 Ω beside 1e28 S (a 1 fF node
     # at a 1e24 1/s eigenvalue) make singular values smaller than the eigenvalue's own, and
     # unscaled inverse iteration converges to those instead.
+    scaled = sp.csr_array(sp.diags_array(factor.r) @ matrix @ sp.diags_array(factor.c))
     with np.errstate(all="ignore"):
-        y = _unit(factor.solve_scaled(_unit(start[0])))
-        y = _unit(factor.solve_scaled(y))
-        x = _unit(factor.solve_scaled(_unit(start[1]), hermitian=True))
-        x = _unit(factor.solve_scaled(x, hermitian=True))
+        y = _inverse_iteration(factor.solve_scaled, lambda v: scaled @ v, start[0])
+        x = _inverse_iteration(
+            lambda v: factor.solve_scaled(v, hermitian=True), lambda v: scaled.conj().T @ v, start[1]
+        )
         w = _unit(factor.c * y)
         z = _unit(factor.r * x)
     if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
@@ -383,6 +408,13 @@ def _bars(
     return eta, kappa, kappa_data, kappa_re, kappa_im
 
 
+def _left_backward_error(prep: _Prepared, lam: complex, z: np.ndarray) -> float:
+    """Componentwise backward error of z as a left null vector: maxⱼ |zᴴ(G + λE)|ⱼ / (|z|ᵀ(|G| + |λ||E|))ⱼ."""
+    if not np.all(np.isfinite(z)):
+        return math.inf
+    return min(_backward_error(prep.G_coo.T, prep.E_coo.T, complex(lam).conjugate(), v) for v in _cleaned(z))
+
+
 def _backward_error(G: sp.coo_array, E: sp.coo_array, lam: complex, w: np.ndarray) -> float:
     """Componentwise backward error maxᵢ |(G + λE) w|ᵢ / ((|G| + |λ||E|)|w|)ᵢ of the pair (λ, w)."""
     residual = (G @ w) + lam * (E @ w)
@@ -591,24 +623,34 @@ def _finish(
     the remaining Newton correction and the floor set by the residual's
     precision through the eigenvectors' rounding.
     """
-    best: tuple[float, float, complex, tuple[float, float, float, float]] | None = None
+    best: tuple[float, float, complex, np.ndarray, np.ndarray] | None = None
     for lam, step, w, z, r in history:
         lam_c = complex(lam)
         if w.dtype == object:
             w = np.array([complex(v) for v in w])
-        bars = _bars(prep, lam_c, w, z)
-        if bars is None:
+        if not np.all(np.isfinite(w)):
             continue
-        eta_double, kappa, kappa_data, kappa_re, kappa_im = bars
         scale = (abs(prep.G_coo) @ np.abs(w)) + abs(lam_c) * (abs(prep.E_coo) @ np.abs(w))
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(scale > 0, np.abs(r) / scale, np.where(r == 0, 0.0, np.inf))
+        eta_double = min(_backward_error(prep.G_coo, prep.E_coo, lam_c, v) for v in _cleaned(w))
         eta = min(float(np.max(ratio)) if ratio.size else 0.0, eta_double)
-        if best is None or eta <= best[0]:
-            best = (eta, step, lam_c, (kappa, kappa_data, kappa_re, kappa_im))
+        if math.isfinite(eta) and (best is None or eta <= best[0]):
+            best = (eta, step, lam_c, w, z)
     if best is None or best[0] > 1e-6:
         return None  # not an eigenvalue of the pencil to any useful accuracy
-    eta, step, lam, (kappa, kappa_data, kappa_re, kappa_im) = best
+    eta, step, lam, w, z = best
+    # The condition numbers need the left vector of the eigenvalue actually reached: the one from
+    # the start λ0 belongs to a different root when Newton's method went elsewhere (and zᴴEw ≈ 0
+    # there, bi-orthogonality, inflates or deflates κ at will). A fresh left vector at λ is kept
+    # when its backward error is smaller.
+    fresh = _pair(prep.G, prep.E, lam, _start_vectors(prep.G.shape[0]))
+    if fresh is not None and _left_backward_error(prep, lam, fresh[1]) < _left_backward_error(prep, lam, z):
+        z = fresh[1]
+    bars = _bars(prep, lam, w, z)
+    if bars is None:
+        return None  # zᴴEw = 0: not a simple eigenvalue
+    _, kappa, kappa_data, kappa_re, kappa_im = bars
     # With an extended-precision residual the Newton correction bounds the remaining error; with a
     # double one, the backward error times the full condition number does.
     floor = EPS * EPS * kappa if residual.exact else eta * kappa + EPS * kappa
@@ -697,12 +739,12 @@ def check_spectrum(
     ]
     # The topology's zeros leave at most n − zeros non-zero roots (a QZ start near such a zero
     # that Newton's method carried to a small neighbour must not count that neighbour twice).
-    plan = _plan(from_a, from_qz, reliable, n - zeros)
+    plan = _plan(blocks, from_a, from_qz, reliable, n - zeros)
     if sum(p[2] for p in plan) + zeros < n:
         known = [r for r in from_a if r is not None] + from_qz
         extra = _sweep(blocks, known, exact, [float(abs(v)) for v in values])
         if extra:
-            plan = _plan(from_a, from_qz + extra, reliable, n - zeros)
+            plan = _plan(blocks, from_a, from_qz + extra, reliable, n - zeros)
     slots: list[tuple[int, CheckedEigenvalue | None]] = []
     done: set[int] = set()
     for ks, qs, count, represented, _ in plan:
@@ -712,13 +754,20 @@ def check_spectrum(
         best = min((r for r in members if r is not None), key=lambda r: r.abs_error)
         slots.extend((-1, best) for _ in range(count))
         done |= set(represented)
-    spare = sorted((k for k in range(n) if k not in done), key=lambda k: abs(values[k]))
+    # Unverified places keep A's values: first those of starts that reached no verified root (or an
+    # ambiguous one), not copies of roots already reported; smallest first within each.
+    grouped = {k for ks, *_ in plan for k in ks}
+    spare = sorted((k for k in range(n) if k not in done), key=lambda k: (k in grouped, abs(values[k])))
     slots.extend((k, None) for k in spare[: n - len(slots)])
     return slots
 
 
 def _plan(
-    from_a: list[CheckedEigenvalue | None], from_qz: list[CheckedEigenvalue], reliable: list[bool], n: int
+    blocks: list[_Prepared],
+    from_a: list[CheckedEigenvalue | None],
+    from_qz: list[CheckedEigenvalue],
+    reliable: list[bool],
+    n: int,
 ) -> list[tuple[list[int], list[CheckedEigenvalue], int, list[int], int]]:
     """Groups of equal verified eigenvalues with their counts, at most n in all.
 
@@ -730,6 +779,12 @@ def _plan(
         # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
         # otherwise A's reliable starts that reached it.
         count = len(qs) if qs else max(len(kept), 1)
+        if count > 1:
+            # Several starts reached this root: it counts more than once only if the circuit equations
+            # are singular to that order there (a semisimple multiple root); starts that converged to
+            # one simple root are one root.
+            head = min([from_a[k] for k in ks if from_a[k] is not None] + qs, key=lambda r: r.abs_error)
+            count = min(count, max(1, _nullity(blocks, head.value)))
         represented = (kept + [k for k in ks if not reliable[k]])[:count]
         plan.append((ks, qs, count, represented, len(kept) + len(qs)))
     while sum(p[2] for p in plan) > n:
@@ -843,18 +898,61 @@ def _finite(value: float) -> float:
 def _group(
     from_a: list[CheckedEigenvalue | None], from_qz: list[CheckedEigenvalue]
 ) -> list[tuple[list[int], list[CheckedEigenvalue]]]:
-    """Verified results equal within their bars: (indices of A starts, results of QZ starts)."""
-    groups: list[tuple[list[int], list[CheckedEigenvalue], CheckedEigenvalue]] = []
+    """Verified results equal within their bars: (indices of A starts, results of QZ starts).
+
+    Each result says "a root lies in this disc". Results are taken tightest
+    first; one whose disc meets no group's tightest disc starts a group, one
+    that meets exactly one joins it, and one that meets several is dropped:
+    it may be any of them and is evidence for none. (Grouping by overlap
+    with whichever came first let one loose bar — 1.2e15 on a 9.9e12 1/s
+    root — swallow four tight, mutually disjoint roots, reported as five
+    copies of the tightest.) The heads are pairwise disjoint, so the groups
+    are distinct roots.
+    """
     items: list[tuple[int, CheckedEigenvalue]] = [(k, r) for k, r in enumerate(from_a) if r is not None]
     items += [(-1, r) for r in from_qz]
+    items.sort(key=lambda item: item[1].abs_error)
+    groups: list[tuple[list[int], list[CheckedEigenvalue], CheckedEigenvalue]] = []
     for k, result in items:
-        for ks, qs, head in groups:
-            if abs(head.value - result.value) <= head.abs_error + result.abs_error:
-                (ks.append(k) if k >= 0 else qs.append(result))
-                break
-        else:
+        hits = [g for g in groups if abs(g[2].value - result.value) <= g[2].abs_error + result.abs_error]
+        if not hits:
             groups.append(([k], [], result) if k >= 0 else ([], [result], result))
+        elif len(hits) == 1:
+            ks, qs, _ = hits[0]
+            (ks.append(k) if k >= 0 else qs.append(result))
     return [(ks, qs) for ks, qs, _ in groups]
+
+
+#: A singular value of the equilibrated G + λE below this fraction of the largest counts as zero when
+#: the multiplicity of a verified root is judged (a double root computed to rounding level has two
+#: near 1e-15; a simple root's second smallest is far above).
+MULTIPLE_TOL = 1e-10
+
+
+def _nullity(blocks: list[_Prepared], lam: complex) -> int:
+    """Numerical nullity of G + λE summed over the diagonal blocks (equilibrated, dense SVD).
+
+    det(G + λE) is the product of the blocks' determinants, so a root's
+    multiplicity is the sum of its multiplicities on the blocks, and each is
+    at least its nullity there. Returns a large number when a block is too
+    big to decompose (no cap is then applied).
+    """
+    total = 0
+    for block in blocks:
+        size = block.G.shape[0]
+        if size > QZ_LIMIT:
+            return size + total + 1
+        matrix = sp.csr_array(block.G + lam * block.E)
+        r, c = _equilibration(matrix)
+        dense = (sp.diags_array(r) @ matrix @ sp.diags_array(c)).toarray()
+        try:
+            with np.errstate(all="ignore"):
+                values = sla.svdvals(dense, check_finite=True)
+        except (np.linalg.LinAlgError, ValueError):
+            return size + total + 1
+        if values.size and values[0] > 0:
+            total += int(np.sum(values <= MULTIPLE_TOL * values[0]))
+    return total
 
 
 def _qz(prep: _Prepared, sigma: float = 1.0, scaled: bool = False) -> list[complex]:
