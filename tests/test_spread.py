@@ -19,6 +19,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.analysis.pencil import CheckedEigenvalue, _blocks, _group, _plan, check_eigenvalue
 from netlistdyn.base.errors import NetlistError
 from netlistdyn.formulation.compile import compile_netlist
 from netlistdyn.frontend.parser import parse_text
@@ -396,6 +397,19 @@ def test_wide_spread_reproducers_within_bars(text):
     assert eig.verdict == expected
 
 
+THREE_BRANCHES = """three identical R-L branches on one node: -R/L = -1e4 1/s is a double root
+Ia 0 a 1
+C1 a 0 1e-6
+R1 a x 10
+L1 x 0 1e-3
+R2 a y 10
+L2 y 0 1e-3
+R3 a z 10
+L3 z 0 1e-3
+Rg a 0 1000
+.end
+"""
+
 FIVE_COPIES = """issue 31: one simple root reported five times, each ±2e-15 (wide campaign seed 20261127)
 Vin n1 0 1
 L0 n3 n1 5.1594991164892189e-14
@@ -439,6 +453,49 @@ def test_one_simple_root_is_not_reported_five_times():
     # The five roots are 21 decades apart and simple: each is verified on the circuit equations.
     assert not eig.warnings, eig.warnings
     assert eig.verdict == expected_verdict(exact) == "asymptotically stable"
+
+
+def _verified(value: complex, bar: float):
+    return CheckedEigenvalue(value, bar, bar, bar, 0.0, refined=False)
+
+
+def test_a_loose_bar_does_not_merge_disjoint_roots():
+    """The grouping of issue 31 with its own numbers: one result −9.88e12 ± 1.2e15 (a bar from a bad
+    left vector) and four tight, mutually disjoint ones. Grouping by overlap with the first result
+    merged all five into one root; the tight ones are four distinct roots, and the loose one,
+    which may be any of them, is evidence for none."""
+    tight = [
+        _verified(v, 1e-15 * abs(v))
+        for v in (-3.0963696686e-9, -7.1648160582e-5, -6.3391866647e5, -1.0317520631e8)
+    ]
+    loose = _verified(-9.8797880757e12, 1.2e15)
+    groups = _group([loose], tight)
+    assert sorted(len(ks) + len(qs) for ks, qs in groups) == [1, 1, 1, 1]
+    assert all(loose not in qs and not ks for ks, qs in groups)
+
+
+@pytest.mark.parametrize(
+    ("text", "root", "count"),
+    [(FIVE_COPIES, -7.16481605823191e-05, 1), (THREE_BRANCHES, -1e4, 2)],
+    ids=["simple", "semisimple-double"],
+)
+def test_starts_converging_to_one_root_count_its_multiplicity(text, root, count):
+    """Two starting values verified at one root: one root if it is simple (the circuit equations lose
+    rank 1 there), two if G + λE loses rank 2 (three identical R–L branches on one node: −R/L is a
+    double, semisimple root)."""
+    netlist = parse_text(text)
+    model = compile_netlist(netlist)
+    blocks, _ = _blocks(model.pencil)
+    result = next(
+        r
+        for b in blocks
+        if (r := check_eigenvalue(b, root * (1 + 1e-9))) is not None
+        and abs(r.value - root) < 1e-6 * abs(root)
+    )
+    plan = _plan(blocks, [None], [result, result], [False], model.nstates)
+    assert [p[2] for p in plan] == [count]
+    exact = exact_natural_frequencies(netlist)
+    assert sum(abs(e - root) <= 1e-9 * abs(root) for e in exact) == count
 
 
 #: Networks drawn from seeds no campaign or test had used (the campaign's seeds were 1–4,
