@@ -427,6 +427,55 @@ Rgn5 n5 0 5.3560383530518424e-06
 """
 
 
+STALLED_AT_ZERO_1 = """a second, non-structural zero beside the L2-Vin loop's (wide campaign seed 31200004)
+Vin n1 0 1
+R0 0 n2 1.7988891058605081e-10
+C1 n1 0 2085.5888479898181
+L2 0 n1 8.9466437528105698e-14
+R3 n2 n3 798982.14222096524
+L4 n3 n1 0.0018085559940345143
+L5 0 n3 320.21551857268781
+Rgn1 n1 0 1.0614844650859977e-05
+Rgn2 n2 0 1.4481000726583426e-10
+Rgn3 n3 0 4.1637145926379739e-05
+G1 0 n1 n1 n2 41.190428863007831
+.end
+"""
+STALLED_AT_ZERO_2 = """coupled parallel inductors: an exact zero no structural count sees (seed 31200004)
+Vin n1 0 1
+L0 n1 n3 4.8206588693682776e-05
+R1 n3 n2 3.6180322129661813e-07
+R2 0 n5 7277.5474612936832
+R3 n4 n3 1.3969973148516176e-09
+C4 n2 n1 1.773048128835931e-10
+L5 n1 n3 7576.0691784176934
+Rgn1 n1 0 57.886442394369716
+Rgn2 n2 0 3774.32700166824
+Rgn3 n3 0 8.9808063478179823e-11
+Rgn4 n4 0 17215.080476938438
+Rgn5 n5 0 1.9837769377683651e-08
+G1 n4 n3 n4 n5 747.96498338147831
+K1 L0 L5 0.94578162681964584
+.end
+"""
+
+
+@pytest.mark.parametrize(
+    "text", [STALLED_AT_ZERO_1, STALLED_AT_ZERO_2], ids=["second-zero", "coupled-parallel"]
+)
+def test_newton_stalled_near_an_exact_zero_keeps_zero_in_its_bar(text):
+    """Exact roots {0, 0, −0.0230224451028} and {0, −1.5584729096926e16, −1.76564268517e-5}. Found by
+    the campaign on an intermediate version of the issue-31 fix (left vector recomputed at the
+    refined λ): Newton's method stalled at −2.97e-137 and 1.67e-79 on its way to the exact 0 (backward
+    error 3e-27), and first-order bars of 1e-142 and 6e-83 did not reach 0; the verdict became
+    "unstable". The bar of such an iterate must cover 0."""
+    netlist, _, eig = _analyse(text, ["v(n1)"])
+    exact = exact_natural_frequencies(netlist)
+    _assert_within_bars(eig.modes, exact)
+    assert eig.verdict in (expected_verdict(exact), "undetermined") or expected_verdict(exact) is None
+    assert eig.verdict != "unstable"
+
+
 def _assert_no_false_multiples(modes, exact) -> None:
     """Two reported eigenvalues whose bars overlap stand for a multiple root: the exact roots must have
     as many in the union of their bars (a simple root reported twice is the failure of issue 31)."""

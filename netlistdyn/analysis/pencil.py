@@ -408,13 +408,6 @@ def _bars(
     return eta, kappa, kappa_data, kappa_re, kappa_im
 
 
-def _left_backward_error(prep: _Prepared, lam: complex, z: np.ndarray) -> float:
-    """Componentwise backward error of z as a left null vector: maxⱼ |zᴴ(G + λE)|ⱼ / (|z|ᵀ(|G| + |λ||E|))ⱼ."""
-    if not np.all(np.isfinite(z)):
-        return math.inf
-    return min(_backward_error(prep.G_coo.T, prep.E_coo.T, complex(lam).conjugate(), v) for v in _cleaned(z))
-
-
 def _backward_error(G: sp.coo_array, E: sp.coo_array, lam: complex, w: np.ndarray) -> float:
     """Componentwise backward error maxᵢ |(G + λE) w|ᵢ / ((|G| + |λ||E|)|w|)ᵢ of the pair (λ, w)."""
     residual = (G @ w) + lam * (E @ w)
@@ -597,7 +590,11 @@ def _newton(
             break
         step = complex(delta[-1])
         history.append((lam, abs(step), w, z, r))
-        if step == 0 or abs(step) <= tol * abs(lam_c):
+        if step == 0 and len(history) == 1:
+            # λ is a root to the last bit (R/L = 1 mΩ/1 H): the vector from the singular factorisation
+            # still carries rounding where it is exactly zero, and one correction removes it.
+            pass
+        elif step == 0 or abs(step) <= tol * abs(lam_c):
             break
         if len(history) >= 3 and abs(step) >= history[-2][1]:
             break  # at the rounding floor
@@ -640,13 +637,6 @@ def _finish(
     if best is None or best[0] > 1e-6:
         return None  # not an eigenvalue of the pencil to any useful accuracy
     eta, step, lam, w, z = best
-    # The condition numbers need the left vector of the eigenvalue actually reached: the one from
-    # the start λ0 belongs to a different root when Newton's method went elsewhere (and zᴴEw ≈ 0
-    # there, bi-orthogonality, inflates or deflates κ at will). A fresh left vector at λ is kept
-    # when its backward error is smaller.
-    fresh = _pair(prep.G, prep.E, lam, _start_vectors(prep.G.shape[0]))
-    if fresh is not None and _left_backward_error(prep, lam, fresh[1]) < _left_backward_error(prep, lam, z):
-        z = fresh[1]
     bars = _bars(prep, lam, w, z)
     if bars is None:
         return None  # zᴴEw = 0: not a simple eigenvalue
@@ -658,6 +648,8 @@ def _finish(
     if not residual.exact:
         kappa_re = kappa_im = kappa_data
     data = SAFETY * EPS
+    if _zero_as_good(prep, residual, w, eta):
+        computation += abs(lam)
     # The reported value is a double: its own rounding (half an ulp of each part, and as much
     # again for a reference rounded the same way) belongs in the bar too.
     return CheckedEigenvalue(
@@ -668,6 +660,29 @@ def _finish(
         eta,
         refined=lam != lam0,
     )
+
+
+#: λ = 0 is "as good" an eigenvalue for the same vector when its backward error is within this factor.
+ZERO_FACTOR = 1e3
+
+
+def _zero_as_good(prep: _Prepared, residual: _Residual, w: np.ndarray, eta: float) -> bool:
+    """True when (0, w) has a backward error as small as (λ, w)'s: the data cannot tell λ from 0.
+
+    A root at exactly 0 that the topology does not guarantee (coupled parallel inductors) has a
+    condition number near 0 under relative changes of the entries, so first-order bars around a tiny
+    iterate (Newton's method stalled at 1.7e-79 on its way to 0, backward error 3e-27) do not reach
+    0. The bar must then cover 0.
+    """
+    wd = np.array([complex(v) for v in w]) if w.dtype == object else w
+    if min(_backward_error(prep.G_coo, prep.E_coo, 0j, v) for v in _cleaned(wd)) > ZERO_FACTOR * EPS:
+        return False  # 0 is clearly not an eigenvalue for this vector (the common case: no extra work)
+    r0 = residual(residual.start(0j), w)
+    scale = abs(prep.G_coo) @ np.abs(wd)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(scale > 0, np.abs(r0) / scale, np.where(r0 == 0, 0.0, np.inf))
+    eta_zero = float(np.max(ratio)) if ratio.size else 0.0
+    return eta_zero <= ZERO_FACTOR * max(eta, EPS * EPS if residual.exact else EPS)
 
 
 #: Pencils up to this size also give starting values of their own (QZ), for when A is poor.
@@ -993,3 +1008,210 @@ def structural_zeros(pencil: Pencil) -> int:
     if G.shape[0] == 0:
         return 0
     return int(G.shape[0] - structural_rank(sp.csr_matrix(G)))
+
+
+#: The quick check (:func:`quick_spectrum`) is tried up to this many states ...
+QUICK_STATES = 40
+#: ... and this many unknowns of the deflated pencil.
+QUICK_PENCIL = 120
+#: Rayleigh-quotient steps at most per eigenvalue in the quick check.
+QUICK_STEPS = 4
+#: The quick check is kept only when every relative error bar is below this: at rounding level, as
+#: the 40-digit path would give (Circuit 1's −2000 1/s comes out at 1.8e-12 in double precision and
+#: takes the 40-digit path, which gives 1e-16).
+QUICK_RTOL = 1e-13
+
+
+def quick_spectrum(pencil: Pencil, values: np.ndarray) -> list[CheckedEigenvalue] | None:
+    """Verify a whole spectrum on the pencil in double precision, or None when that cannot vouch for it.
+
+    The cheap path for small, well-conditioned models (a sweep's thousand
+    cases): per eigenvalue λ of A, two-sided Rayleigh-quotient iteration on
+    the dense, equilibrated G + λE (inverse iteration for the right and
+    left null vectors w, z; λ ← λ − zᴴ(G + λE)w / zᴴEw), then the same bars
+    as :func:`check_eigenvalue` with a double-precision residual:
+    (η + eps)·κ for the computation, eps·κ_data for the element values'
+    rounding, plus the last correction, each times :data:`SAFETY`.
+
+    The result stands only when it accounts for the whole spectrum: every
+    eigenvalue verified with a relative bar below :data:`QUICK_RTOL`, the
+    bars pairwise disjoint (so n distinct simple roots of det(G + λE),
+    whose degree is n), every real part's sign resolved by its bar (the
+    verdict then needs nothing more), and no zero the topology guarantees.
+    Anything else — a multiple or clustered root, a tiny damping ratio, a
+    bar that the 40-digit path would shrink — returns None, and the caller
+    runs :func:`check_spectrum`.
+    """
+    n = len(values)
+    if n == 0 or n > QUICK_STATES or not np.all(np.isfinite(values)) or np.any(values == 0):
+        return None
+    if pencil.G.shape[0] > 2 * QUICK_PENCIL:
+        return None
+    G, E = pencil.G.toarray().real.astype(float), pencil.E.toarray().real.astype(float)
+    D = pencil.G_data.toarray().real.astype(float) if pencil.G_data is not None else G
+    rows, cols = _dense_deflate(G, E)
+    if len(rows) > QUICK_PENCIL:
+        return None
+    G, E, D = G[np.ix_(rows, cols)], E[np.ix_(rows, cols)], D[np.ix_(rows, cols)]
+    from scipy.sparse.csgraph import structural_rank
+
+    if G.shape[0] == 0 or structural_rank(sp.csr_matrix(G != 0)) < G.shape[0]:
+        return None  # zeros the topology guarantees: the full check counts them
+    # Each eigenvalue on its own diagonal block (as in check_spectrum): an eigenvector is exactly zero
+    # on the other blocks, where inverse iteration would leave rounding that no backward error excuses.
+    parts = _diagonal_blocks(sp.csr_array(G), sp.csr_array(E)) or [(np.arange(len(G)), np.arange(len(G)))]
+    blocks = []
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", sla.LinAlgWarning)
+        for r, c in parts:
+            g, e, d = G[np.ix_(r, c)], E[np.ix_(r, c)], D[np.ix_(r, c)]
+            if np.any(e != 0):
+                roots = _dense_qz(g, e)
+                if roots is None:
+                    return None
+                blocks.append((g, e, np.abs(g), np.abs(e), np.abs(d), roots))
+    # The blocks' finite roots must number the states (the pencil's degree); each eigenvalue of A is
+    # then checked on the block holding the nearest unclaimed one.
+    if sum(len(b[5]) for b in blocks) != n:
+        return None
+    unclaimed = [list(b[5]) for b in blocks]
+    results: list[CheckedEigenvalue] = []
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", sla.LinAlgWarning)
+        for value in values:
+            lam = complex(value)
+            i, j = min(
+                ((i, j) for i, roots in enumerate(unclaimed) for j in range(len(roots))),
+                key=lambda ij: abs(unclaimed[ij[0]][ij[1]] - lam),
+            )
+            unclaimed[i].pop(j)
+            result = _quick_one(*blocks[i][:5], lam)
+            if result is None or not result.abs_error <= QUICK_RTOL * abs(result.value):
+                return None
+            if not abs(result.value.real) > result.re_error:
+                return None  # the sign of the real part is not resolved in double precision
+            results.append(result)
+    for i, a in enumerate(results):
+        for b in results[i + 1 :]:
+            if abs(a.value - b.value) <= a.abs_error + b.abs_error:
+                return None  # possibly one root twice, or a multiple root: the full check decides
+    return results
+
+
+def _dense_qz(g: np.ndarray, e: np.ndarray) -> list[complex] | None:
+    """Finite roots of det(g + λe) of one small dense block (equilibrated QZ), None on failure."""
+    if g.shape[0] == 1:
+        return [complex(-g[0, 0] / e[0, 0])] if e[0, 0] != 0 else []
+    scale_r = 1.0 / np.maximum(np.abs(g).max(axis=1), np.abs(e).max(axis=1)).clip(min=1e-300)
+    g, e = g * scale_r[:, None], e * scale_r[:, None]
+    scale_c = 1.0 / np.maximum(np.abs(g).max(axis=0), np.abs(e).max(axis=0)).clip(min=1e-300)
+    g, e = g * scale_c[None, :], e * scale_c[None, :]
+    try:
+        alpha, beta = sla.eigvals(-g, e, homogeneous_eigvals=True, check_finite=False)
+    except (sla.LinAlgError, ValueError):
+        return None
+    finite = np.abs(beta) > 1e-14 * np.abs(alpha)
+    roots = alpha[finite] / beta[finite]
+    if not np.all(np.isfinite(roots)):
+        return None
+    return [complex(v) for v in roots]
+
+
+def _dense_deflate(G: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_deflate` on dense matrices: rows and columns kept once one-entry rows are removed."""
+    rows, cols = np.arange(G.shape[0]), np.arange(G.shape[1])
+    while rows.size:
+        g, e = G[np.ix_(rows, cols)] != 0, E[np.ix_(rows, cols)] != 0
+        single = np.flatnonzero((g.sum(axis=1) == 1) & (e.sum(axis=1) == 0))
+        if not single.size:
+            break
+        drop_c = np.unique(np.argmax(g[single], axis=1))
+        keep_r = np.setdiff1d(np.arange(rows.size), single)
+        keep_c = np.setdiff1d(np.arange(cols.size), drop_c)
+        if keep_r.size != keep_c.size:
+            break
+        rows, cols = rows[keep_r], cols[keep_c]
+    return rows, cols
+
+
+def _quick_vectors(G: np.ndarray, E: np.ndarray, lam: complex) -> tuple[np.ndarray, np.ndarray] | None:
+    """Right and left null vectors of the dense, equilibrated G + λE by inverse iteration."""
+    m = G + lam * E
+    abs_m = np.abs(m)
+    row = abs_m.max(axis=1)
+    r = np.where(row > 0, 1.0 / np.where(row > 0, row, 1.0), 1.0)
+    col = (abs_m * r[:, None]).max(axis=0)
+    c = np.where(col > 0, 1.0 / np.where(col > 0, col, 1.0), 1.0)
+    s = m * r[:, None] * c[None, :]
+    lu, piv = sla.lu_factor(s, check_finite=False)
+    diag = np.abs(np.diag(lu))
+    if not np.all(np.isfinite(lu)):
+        return None
+    if np.min(diag) == 0:  # λ is a root to the last bit: factorise a neighbour instead
+        lu, piv = sla.lu_factor(s + (4 * EPS) * np.eye(len(s)), check_finite=False)
+    rng_w, rng_z = _start_vectors(len(s))
+    y = _inverse_iteration(lambda v: sla.lu_solve((lu, piv), v, check_finite=False), lambda v: s @ v, rng_w)
+    x = _inverse_iteration(
+        lambda v: sla.lu_solve((lu, piv), v, trans=2, check_finite=False), lambda v: s.conj().T @ v, rng_z
+    )
+    w, z = _unit(c * y), _unit(r * x)
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
+        return None
+    return w, z
+
+
+def _quick_one(
+    G: np.ndarray, E: np.ndarray, abs_g: np.ndarray, abs_e: np.ndarray, abs_d: np.ndarray, lam0: complex
+) -> CheckedEigenvalue | None:
+    """One eigenvalue of the quick check: Rayleigh-quotient iteration, then the double-precision bars."""
+    lam = lam0
+    step = math.inf
+    for iteration in range(QUICK_STEPS):
+        vectors = _quick_vectors(G, E, lam)
+        if vectors is None:
+            return None
+        w, z = vectors
+        d = np.vdot(z, E @ w)
+        if d == 0 or not np.isfinite(d):
+            return None
+        correction = np.vdot(z, (G + lam * E) @ w) / d
+        step = abs(correction)
+        if not math.isfinite(step):
+            return None
+        if step <= 4 * EPS * abs(lam) or iteration == QUICK_STEPS - 1:
+            break  # settled, or at the rounding floor: the last correction joins the bar
+        lam = lam - complex(correction)
+    # Bars at λ with its own vectors (those of the last iteration); a λ that did not settle has a
+    # large last correction, and its bar says so.
+    u = z.conj() / d
+    au, aw = np.abs(u), np.abs(w)
+    e_part = abs(lam) * float(au @ abs_e @ aw)
+    kappa = float(au @ abs_g @ aw) + e_part
+    kappa_data = float(au @ abs_d @ aw) + e_part
+    w_norm = w / w[int(np.argmax(aw))]
+    eta = min(_dense_backward_error(G, E, abs_g, abs_e, lam, v) for v in _cleaned(w_norm))
+    if not (math.isfinite(kappa) and math.isfinite(eta)) or eta > 1e-10:
+        return None
+    computation = SAFETY * (step + eta * kappa + EPS * kappa)
+    data = SAFETY * EPS * kappa_data
+    return CheckedEigenvalue(
+        lam,
+        data + computation + EPS * abs(lam),
+        data + computation + EPS * abs(lam.real),
+        data + computation + EPS * abs(lam.imag),
+        eta,
+        refined=lam != lam0,
+    )
+
+
+def _dense_backward_error(
+    G: np.ndarray, E: np.ndarray, abs_g: np.ndarray, abs_e: np.ndarray, lam: complex, w: np.ndarray
+) -> float:
+    """:func:`_backward_error` for dense matrices."""
+    residual = G @ w + lam * (E @ w)
+    aw = np.abs(w)
+    scale = abs_g @ aw + abs(lam) * (abs_e @ aw)
+    ratio = np.where(
+        scale > 0, np.abs(residual) / np.where(scale > 0, scale, 1.0), np.where(residual == 0, 0.0, np.inf)
+    )
+    return float(np.max(ratio)) if ratio.size else 0.0
