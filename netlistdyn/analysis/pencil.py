@@ -135,12 +135,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def _inverse_iteration(
-    solve: Callable[[np.ndarray], np.ndarray],
-    apply: Callable[[np.ndarray], np.ndarray],
-    start: np.ndarray,
-    steps: int = 2,
+    solve: Callable[[np.ndarray], np.ndarray], apply: Callable[[np.ndarray], np.ndarray], start: np.ndarray
 ) -> np.ndarray:
-    """``steps`` steps of inverse iteration, returning the iterate with the smallest residual ‖S v‖.
+    """Two steps of inverse iteration, returning the iterate with the smaller residual ‖S v‖.
 
     A second step from an iterate that is already a null vector to working
     precision can cancel exactly: the right-hand side then has no component
@@ -151,7 +148,7 @@ def _inverse_iteration(
     """
     best, best_residual = _unit(start), math.inf
     v = best
-    for _ in range(steps):
+    for _ in range(2):
         v = _unit(solve(v))
         residual = float(np.linalg.norm(apply(v)))
         if not np.all(np.isfinite(v)) or not math.isfinite(residual):
@@ -1017,8 +1014,6 @@ def structural_zeros(pencil: Pencil) -> int:
 QUICK_STATES = 40
 #: ... and this many unknowns of the deflated pencil.
 QUICK_PENCIL = 120
-#: Inverse iteration steps per vector in the quick check.
-QUICK_INVERSE = 3
 #: Rayleigh-quotient steps at most per eigenvalue in the quick check.
 QUICK_STEPS = 4
 #: The quick check is kept only when every relative error bar is below this: at rounding level, as
@@ -1155,14 +1150,9 @@ def _quick_vectors(G: np.ndarray, E: np.ndarray, lam: complex) -> tuple[np.ndarr
     if np.min(diag) == 0:  # λ is a root to the last bit: factorise a neighbour instead
         lu, piv = sla.lu_factor(s + (4 * EPS) * np.eye(len(s)), check_finite=False)
     rng_w, rng_z = _start_vectors(len(s))
-    y = _inverse_iteration(
-        lambda v: sla.lu_solve((lu, piv), v, check_finite=False), lambda v: s @ v, rng_w, QUICK_INVERSE
-    )
+    y = _inverse_iteration(lambda v: sla.lu_solve((lu, piv), v, check_finite=False), lambda v: s @ v, rng_w)
     x = _inverse_iteration(
-        lambda v: sla.lu_solve((lu, piv), v, trans=2, check_finite=False),
-        lambda v: s.conj().T @ v,
-        rng_z,
-        QUICK_INVERSE,
+        lambda v: sla.lu_solve((lu, piv), v, trans=2, check_finite=False), lambda v: s.conj().T @ v, rng_z
     )
     w, z = _unit(c * y), _unit(r * x)
     if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
