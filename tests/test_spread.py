@@ -22,7 +22,7 @@ from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.analysis.pencil import CheckedEigenvalue, _blocks, _group, _plan, check_eigenvalue
 from netlistdyn.base.errors import NetlistError
 from netlistdyn.formulation.compile import compile_netlist
-from netlistdyn.frontend.parser import parse_text
+from netlistdyn.frontend.parser import parse_file, parse_text
 from tests.exact_pencil import bar_violations, exact_natural_frequencies, expected_verdict
 from tests.random_networks import random_network
 
@@ -545,6 +545,21 @@ def test_starts_converging_to_one_root_count_its_multiplicity(text, root, count)
     assert [p[2] for p in plan] == [count]
     exact = exact_natural_frequencies(netlist)
     assert sum(abs(e - root) <= 1e-9 * abs(root) for e in exact) == count
+
+
+def test_critically_damped_double_root_counts_twice():
+    """Circuit 1 with R1 = R2 = 1 Ω: −1 1/s is a defective double root (G + λE loses rank 1 there, its
+    bars are 2e-7, not first-order tight). Both starts that reach it count: capping it by the nullity
+    left A's second −1 with a normwise bar of 2.7, printed as 0, and the verdict "undetermined"."""
+    from tests.conftest import NETLISTS
+
+    netlist = parse_file(NETLISTS / "circuit1.cir", {"r1": 1.0, "r2": 1.0})
+    model = compile_netlist(netlist)
+    eig = analyze_eigenvalues(model.A_sparse, "all", pencil=model.pencil)
+    exact = exact_natural_frequencies(netlist)
+    _assert_within_bars(eig.modes, exact)
+    assert eig.verdict == "asymptotically stable"
+    assert not eig.warnings, eig.warnings
 
 
 #: Networks drawn from seeds no campaign or test had used (the campaign's seeds were 1–4,

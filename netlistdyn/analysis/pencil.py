@@ -794,11 +794,12 @@ def _plan(
         # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
         # otherwise A's reliable starts that reached it.
         count = len(qs) if qs else max(len(kept), 1)
-        if count > 1:
-            # Several starts reached this root: it counts more than once only if the circuit equations
-            # are singular to that order there (a semisimple multiple root); starts that converged to
-            # one simple root are one root.
-            head = min([from_a[k] for k in ks if from_a[k] is not None] + qs, key=lambda r: r.abs_error)
+        head = min([from_a[k] for k in ks if from_a[k] is not None] + qs, key=lambda r: r.abs_error)
+        if count > 1 and head.abs_error <= DEFECTIVE_RTOL * abs(head.value):
+            # Several starts reached this root and its bar is first-order tight, which a defective
+            # root's never is (it moves by eps^(1/m)): it counts more than once only if the circuit
+            # equations are singular to that order there (a semisimple multiple root); starts that
+            # converged to one simple root are one root.
             count = min(count, max(1, _nullity(blocks, head.value)))
         represented = (kept + [k for k in ks if not reliable[k]])[:count]
         plan.append((ks, qs, count, represented, len(kept) + len(qs)))
@@ -938,6 +939,10 @@ def _group(
     return [(ks, qs) for ks, qs, _ in groups]
 
 
+#: A verified root whose relative bar is above this may be defective (critical damping: −1 1/s twice,
+#: bars 2e-7) and keeps the count of the starts that reached it; below it, its multiplicity is capped
+#: by the nullity of G + λE.
+DEFECTIVE_RTOL = 1e-10
 #: A singular value of the equilibrated G + λE below this fraction of the largest counts as zero when
 #: the multiplicity of a verified root is judged (a double root computed to rounding level has two
 #: near 1e-15; a simple root's second smallest is far above).
