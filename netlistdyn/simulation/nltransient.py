@@ -31,10 +31,12 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
-from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
 from netlistdyn.circuit.sources import SourceValues, breakpoints, resolved_waveforms
+from netlistdyn.devices.models import junction_charge, junction_current
 from netlistdyn.formulation.nlsystem import NonlinearSystem
 from netlistdyn.formulation.nonlinear import NonlinearCircuit
+from netlistdyn.simulation.initial import held_nodes, uses_uic
 from netlistdyn.simulation.integrators import SimResult
 from netlistdyn.simulation.transient import single_thread
 
@@ -76,6 +78,20 @@ NONLINEAR_METHODS = ("BDF", "Radau", "DOP853")
 NONLINEAR_VALIDATE_RTOL = 1e-7
 #: Tightest relative tolerance used (a tighter request is raised to it, and the setting says so).
 MIN_RTOL = 1e-9
+#: Decades a state may grow past its scale (the larger of its natural scale, see :func:`_scale`,
+#: and its starting value) before the run is stopped as diverged: a solution 1e12 times its
+#: scale is a blow-up (x' = x² from 1 reaches it 1e-12 s before t = 1), not a circuit's response.
+DIVERGENCE_DECADES = 12
+#: Decades of growth that make a failed step (the integrator's step size collapsing) a divergence.
+FAILED_GROWTH_DECADES = 6
+
+
+class Diverged(NetlistError):
+    """The nonlinear transient grew without bound (or to overflow) at time ``t`` (s)."""
+
+    def __init__(self, message: str, loc: SourceLocation, t: float) -> None:
+        super().__init__(message, loc)
+        self.t = t
 
 
 def simulate_nonlinear(
@@ -113,14 +129,21 @@ def simulate_nonlinear(
         u_start = u0 if u0 is not None else SourceValues(resolved_waveforms(netlist, span))(0.0)
         start, _, how = nonlinear_start(netlist, u_start)
     used = max(rtol, MIN_RTOL)
-    result = run(netlist, outputs, times, used, start, progress, method)
+    setting = f"rtol={used:g}" + (f", raised from {rtol:g}" if used != rtol else "")
+    begun = _time.perf_counter()
+    try:
+        result = run(netlist, outputs, times, used, start, progress, method)
+    except Diverged as exc:
+        empty = np.zeros((0, len(outputs)))
+        seconds = _time.perf_counter() - begun
+        return SimResult(times[:0], empty, method, setting, seconds, "diverged", exc.message, {}), how
     note = f"nonlinear transient; {result.stats['steps']} steps"
     return (
         SimResult(
             result.time,
             result.outputs,
             method,
-            f"rtol={used:g}" + (f", raised from {rtol:g}" if used != rtol else ""),
+            setting,
             result.seconds,
             "ok",
             note,
@@ -135,16 +158,19 @@ def nonlinear_start(
 ) -> tuple[NDArray[np.float64] | None, bool, str]:
     """Where SPICE starts the transient of a nonlinear netlist: (state or None for rest, uic, description).
 
-    With ``.tran ... UIC``, and for a mechanism whose forces read displacements (released from
-    where it is drawn), the start is rest: zero charges, currents and displacements (IC= values
-    are not used). Otherwise it is the DC operating point with the sources at their t = 0 values,
-    as ngspice's transient starts (rest when that point is zero).
+    With ``.tran ... UIC`` no operating point is solved: every capacitor starts at its ``IC=``
+    voltage, else at the difference of its nodes' ``.ic`` voltages, every inductor at its ``IC=``
+    current, a diode junction at the ``.ic`` voltage across it (as ngspice 39 does; rest when
+    none is given). A mechanism whose forces read displacements is released from where it is
+    drawn. Otherwise the start is the DC operating point with the sources at their t = 0
+    values, as ngspice's transient starts (rest when that point is zero).
     """
-    from netlistdyn.simulation.initial import uses_uic
-
     circuit = NonlinearCircuit(netlist)
     if uses_uic(netlist):
-        return None, True, "rest (UIC: zero charges and currents)"
+        x = uic_state(netlist, circuit)
+        if x is None:
+            return None, True, "rest (UIC: zero charges and currents)"
+        return x, True, "UIC: IC= and .ic values"
     if circuit.disp_index:
         return None, True, "rest at the drawn position (a mechanism with forces of x(n))"
     point = circuit.operating_point(np.asarray(u0, dtype=float))
@@ -152,6 +178,46 @@ def nonlinear_start(
     if not np.any(x) and not np.any(u0):
         return None, True, "rest (the operating point is zero)"
     return x, False, f"the DC operating point ({point.method}, {point.iterations} Newton iterations)"
+
+
+def uic_state(netlist: Netlist, circuit: NonlinearCircuit) -> NDArray[np.float64] | None:
+    """The state ``UIC`` starts from: ``IC=`` and ``.ic`` values on the circuit's states; None for rest.
+
+    A capacitor's charge is its charge at its ``IC=`` voltage, else at the difference of its
+    nodes' ``.ic`` voltages (a node not named counts as 0 V); an inductor's current its ``IC=``
+    current, else 0; a diode junction's charge the charge at the ``.ic`` voltage across the
+    diode; displacements start at 0 (the drawn position).
+
+    Raises
+    ------
+    NetlistError
+        An ``.ic`` on the ground node or on a node the netlist does not have.
+    """
+    volts = {GROUND: 0.0, **{node: value for node, (value, _) in held_nodes(netlist).items()}}
+
+    def across(a: str, b: str) -> float:
+        return volts.get(a, 0.0) - volts.get(b, 0.0)
+
+    x = np.zeros(len(circuit.state_names))
+    k = 0
+    for e in circuit.capacitors:
+        v = e.ic if e.ic is not None else across(e.nodes[0], e.nodes[1])
+        x[k] = circuit.charge(e, v)[0] if v else 0.0
+        k += 1
+    for e in circuit.inductors:
+        x[k] = e.ic if e.ic is not None else 0.0
+        k += 1
+    for d in circuit.charged_diodes:
+        vd = across(d.element.nodes[0], d.element.nodes[1])
+        if vd:
+            i, g = junction_current(vd, d.junction)
+            x[k] = junction_charge(vd, i, g, d.junction)[0]
+        k += 1
+    if not np.all(np.isfinite(x)):
+        raise NetlistError(
+            "UIC: the IC= and .ic values give a non-finite starting charge", SourceLocation(netlist.path, 0)
+        )
+    return x if np.any(x) else None
 
 
 def initial_state(
@@ -224,7 +290,18 @@ def run(
     system = NonlinearSystem(netlist, span)
     tstop = float(times[-1])
     x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float)
-    atol = _atol(system, times, rtol)
+    scale = _scale(system, times)
+    atol = np.maximum(rtol * 1e-3 * scale, 1e-300)
+    limit = np.maximum(scale, np.abs(x)) * 10.0**DIVERGENCE_DECADES
+    names = system.circuit.state_names
+    where = SourceLocation(netlist.path, 0)
+
+    def growth(_t: float, y: NDArray[np.float64]) -> float:
+        """Positive while every state is finite and below its divergence limit."""
+        ratio = np.abs(y) / limit
+        return 1.0 - float(ratio.max()) if np.all(np.isfinite(ratio)) else -1.0
+
+    growth.terminal = True  # type: ignore[attr-defined]
     edges = np.unique(np.r_[0.0, breakpoints(system.waveforms, tstop), tstop])
     states = np.zeros((times.size, system.nstates))
     steps = 0
@@ -245,7 +322,19 @@ def run(
                 dense_output=True,
                 **({"jac": system.jacobian} if implicit else {}),
                 first_step=min((b - a) * 1e-6, tstop * 1e-9) or None,
+                events=growth,
             )
+            last = sol.y[:, -1]
+            grown = np.abs(last) / np.maximum(scale, np.abs(x))
+            if sol.status == 1 or (sol.status != 0 and not np.all(grown < 10.0**FAILED_GROWTH_DECADES)):
+                k = int(np.nanargmax(np.where(np.isfinite(grown), grown, np.inf)))
+                t_end = float(sol.t[-1])
+                how = "to overflow" if not np.isfinite(last[k]) else f"past {grown[k]:.2g} times its scale"
+                raise Diverged(
+                    f"at t = {t_end:.6g} s {names[k]} = {last[k]:.3g} grew {how}: the solution blows up",
+                    where,
+                    t_end,
+                )
             if sol.status != 0:
                 raise NetlistError(
                     f"nonlinear transient failed at t = {sol.t[-1]:.6g} s: {sol.message}",
@@ -275,8 +364,11 @@ def run(
     )
 
 
-def _atol(system: NonlinearSystem, times: NDArray[np.float64], rtol: float) -> NDArray[np.float64]:
-    """Absolute tolerance per state: rtol × (capacitance × voltage scale, or current scale)."""
+def _scale(system: NonlinearSystem, times: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Natural scale of each state: capacitance × voltage scale (C), current scale (A), ...
+
+    The absolute tolerance is ``rtol × 1e-3 ×`` this; the divergence limit ``10**12 ×`` it.
+    """
     c = system.circuit
     sample = np.linspace(0.0, float(times[-1]), 257)
     u = np.array([system.inputs(float(t)) for t in sample]) if c.sources else np.zeros((1, 0))
@@ -293,4 +385,4 @@ def _atol(system: NonlinearSystem, times: NDArray[np.float64], rtol: float) -> N
     scale[nc:nl] = iscale
     for k, d in enumerate(c.charged_diodes):
         scale[nl + k] = d.junction.cjo * d.junction.vj + d.junction.tt * iscale
-    return np.maximum(rtol * 1e-3 * scale, 1e-300)
+    return scale
