@@ -121,12 +121,16 @@ def parse_param_overrides(items: tuple[str, ...], option: str = "--param") -> di
     return out
 
 
-def check_outputs(**paths: str | None) -> None:
-    """Refuse, before any work, output paths that cannot be written or that repeat.
+def check_outputs(inputs: tuple[str, ...] = (), **paths: str | None) -> None:
+    """Refuse, before any work, output paths that cannot be written, that repeat, or that are inputs.
 
+    ``inputs`` are the netlists and saved models the command reads (``-``: standard input); a
+    netlist's ``.include`` and ``.lib`` files count too. An output is refused when it is the same
+    file as any of them (symbolic and hard links resolved), so a report never replaces its netlist.
     Keyword names are the options (``out`` for ``-o``, underscores for dashes).
     """
     seen: dict[str, str] = {}
+    given: list[tuple[str, str]] = []
     for key, path in paths.items():
         if not path:
             continue
@@ -144,6 +148,39 @@ def check_outputs(**paths: str | None) -> None:
         if real in seen:
             raise UsageError(f"{seen[real]} and {option} both write {path}")
         seen[real] = option
+        if path != STDOUT:
+            given.append((option, path))
+    if not given:
+        return
+    for source in input_files(inputs):
+        for option, path in given:
+            if same_file(path, source):
+                raise UsageError(
+                    f"{option} {path}: is {source}, an input of this command; refusing to overwrite it"
+                )
+
+
+def input_files(inputs: tuple[str, ...]) -> list[str]:
+    """The files the command reads: each input, and the ``.include``/``.lib`` files of netlists."""
+    from netlistdyn.frontend.parser import netlist_files
+
+    files: list[str] = []
+    for source in inputs:
+        if source == DASH:
+            files += [str(p) for p in netlist_files(STDIN_NAME, stdin_text())]
+        elif os.path.splitext(source)[1].lower() in MODEL_SUFFIXES:
+            files.append(source)
+        else:
+            files += [str(p) for p in netlist_files(source)]
+    return files
+
+
+def same_file(a: str, b: str) -> bool:
+    """True when paths ``a`` and ``b`` name one existing file (after links, hard or symbolic)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (an output not yet written): not the same
+        return False
 
 
 def parse_netlist(netlist: str, overrides: dict[str, float] | None = None, text: str | None = None) -> Any:
@@ -469,7 +506,7 @@ def analyze(
     )
 
     def body() -> int:
-        check_outputs(bode=bode, save=save, out=out)
+        check_outputs((netlist,), bode=bode, save=save, out=out)
         from netlistdyn.workflows.large import descriptor_wanted
 
         early = parse_netlist(netlist, parse_param_overrides(params))
@@ -614,7 +651,7 @@ def op(
     junction limiting, then gmin stepping, then source stepping, as SPICE does."""
 
     def body() -> int:
-        check_outputs(out=out)
+        check_outputs((netlist,), out=out)
         from netlistdyn.formulation.operating import operating_point, point_dict, point_text
         from netlistdyn.io.report import to_json
 
@@ -707,7 +744,7 @@ def validate(
     from netlistdyn.spice.ngspice import ngspice_missing
 
     def body() -> int:
-        check_outputs(plot=plot, out=out)
+        check_outputs((netlist,), plot=plot, out=out)
         missing = ngspice_missing()
         if missing:
             click.echo(f"netlistdyn: {missing}", err=True)
@@ -880,7 +917,7 @@ def simulate(
         from netlistdyn.workflows.large import descriptor_wanted
         from netlistdyn.workflows.pipelines import simulation_pipeline
 
-        check_outputs(csv=csv_path, plot=plot, animate=animate, out=out)
+        check_outputs((netlist,), csv=csv_path, plot=plot, animate=animate, out=out)
         report_to = csv_beside_report(csv_path, out, fmt)
         split = _superpose_options(superpose, jobs, oversubscribe, scheduler, coordinates, animate)
         parsed = parse_netlist(netlist, parse_param_overrides(params))
@@ -1082,7 +1119,7 @@ def bench(
 
         if points > MAX_POINTS:
             raise UsageError(f"--points {points}: more than {MAX_POINTS:,} grid intervals")
-        check_outputs(plot=plot, out=out)
+        check_outputs((netlist,), plot=plot, out=out)
         parsed, model = load_and_compile(netlist, params, list(outputs) or None)
         if not parsed.sources:
             raise NetlistError(
@@ -1234,7 +1271,7 @@ def sweep(
         from netlistdyn.io.report import sweep_record_json, sweep_text, to_json
         from netlistdyn.workflows.sweep import SweepSource, expand_cases, iter_sweep
 
-        check_outputs(plot=plot, out=out)
+        check_outputs((netlist,), plot=plot, out=out)
         check_scheduler(scheduler)
         # "-": standard input, read once; every case re-reads its text (as a file's).
         source = SweepSource(STDIN_NAME, stdin_text()) if netlist == DASH else SweepSource.read(netlist)
@@ -1404,7 +1441,7 @@ def connect(
         from netlistdyn.io.report import model_dict, text_report, to_json
         from netlistdyn.statespace.interconnect import connection_names, feedback, series
 
-        check_outputs(save=save, out=out)
+        check_outputs((first, second), save=save, out=out)
         m1 = load_block(first, param1, output1)
         m2 = load_block(second, param2, output2)
         names = (Path(first).stem, Path(second).stem)

@@ -95,3 +95,112 @@ def test_blow_up_is_reported_as_diverged_at_t_1(tmp_path: Path) -> None:
     assert math.isclose(t_end, 1.0, abs_tol=3e-3)
     assert not (tmp_path / "o.csv").exists()
     assert out == ""
+
+
+# --- class 2: data loss: an output that is an input is refused, nothing written -------------
+
+
+def test_report_never_replaces_its_netlist_or_an_include(tmp_path: Path) -> None:
+    include = tmp_path / "part.inc"
+    include.write_text("* included\nR2 a 0 2\n")
+    netlist = tmp_path / "top.cir"
+    netlist.write_text("top\nV1 a 0 1\nR1 a 0 1\n.include part.inc\n.tran 1m 10m\n")
+    (tmp_path / "link.cir").symlink_to(netlist)
+    (tmp_path / "hard.inc").hardlink_to(include)
+    model = tmp_path / "block.json"
+    model.write_text(
+        '{"states": ["q"], "inputs": ["u"], "outputs": ["y"], '
+        '"A": [[-1]], "B": [[1]], "C": [[1]], "D": [[0]]}'
+    )
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.is_symlink()}
+    cases = [
+        (["analyze", str(netlist), "-o", str(netlist)], "-o"),
+        (["analyze", str(netlist), "-o", str(tmp_path / "link.cir")], "-o"),  # a symbolic link
+        (["analyze", str(netlist), "--save", str(tmp_path / "m.json"), "-o", str(include)], "-o"),
+        (["simulate", str(netlist), "--csv", str(tmp_path / "hard.inc")], "--csv"),  # a hard link
+        (["op", str(tmp_path / "link.cir"), "-o", str(netlist)], "-o"),
+        (["connect", "series", str(netlist), str(netlist), "-o", str(include)], "-o"),
+        (["connect", "series", str(netlist), str(model), "--save", str(model)], "--save"),
+    ]
+    for args, option in cases:
+        code, out, err = cli(args)
+        assert code == 2, (args, err)
+        assert err.count("\n") == 1 and option in err and "refusing to overwrite" in err, err
+        assert out == ""
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.is_symlink()}
+    assert after == before  # no file changed, none added (m.json was not written either)
+
+
+def test_stdin_netlist_includes_are_inputs_too(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    Path("part.inc").write_text("R2 a 0 2\n")
+    code, _, err = cli(["analyze", "-", "-o", "part.inc"], stdin="t\nV1 a 0 1\nR1 a 0 1\n.include part.inc\n")
+    assert code == 2 and "refusing to overwrite" in err
+    assert Path("part.inc").read_text() == "R2 a 0 2\n"
+
+
+# --- class 3: internal errors: one validation pass, overflow, symbolic-link loops -------------
+
+
+REFERENCES = {
+    "E1 b 0 zz 0 2\nR2 b 0 1\n": "controlling node 'zz'",
+    "F1 b 0 Vx 2\nR2 b 0 1\n": "'vx' is not a voltage source",
+    "L1 b 0 1\nK1 L1 L2 0.5\nR3 a b 1\n": "'l2' is not an inductor",
+}
+
+
+@pytest.mark.parametrize("command", ["op", "simulate", "analyze", "validate", "sweep"])
+@pytest.mark.parametrize("body", list(REFERENCES), ids=["E", "F", "K"])
+def test_every_command_checks_references_the_same(command: str, body: str, tmp_path: Path) -> None:
+    netlist = tmp_path / "n.cir"
+    netlist.write_text("t\n.param R1=1\nV1 a 0 1\nR1 a 0 {R1}\n" + body + "D1 a 0 dm\n.model dm D\n")
+    args = [command, str(netlist)] + (["--param", "R1=1,2"] if command == "sweep" else [])
+    code, _, err = cli(args)
+    assert code == 1, err
+    assert REFERENCES[body] in err.strip().splitlines()[-1]
+    assert "internal error" not in err
+
+
+def test_huge_initial_state_on_a_nonlinear_netlist_is_diverged_not_overflow() -> None:
+    netlist = str(Path(__file__).resolve().parent.parent / "netlists" / "nonlinear_rc.cir")
+    code, _, err = cli(["simulate", netlist, "-q", "--ic", "q(C1)=1e100"])
+    assert code == 3, err
+    assert "diverged" in err and "overflow" in err and "internal error" not in err
+
+
+def test_include_loop_of_symbolic_links_is_one_line(tmp_path: Path) -> None:
+    (tmp_path / "a.inc").symlink_to(tmp_path / "b.inc")
+    (tmp_path / "b.inc").symlink_to(tmp_path / "a.inc")
+    netlist = tmp_path / "n.cir"
+    netlist.write_text("t\nV1 a 0 1\nR1 a 0 1\n.include a.inc\n")
+    code, _, err = cli(["analyze", str(netlist)])
+    assert code == 1
+    assert err.strip() == f"{netlist}:4: .include a.inc: a loop of symbolic links"
+
+
+# --- class 4: work: a nonlinear transient too long to run is stopped with the source named ----
+
+
+def test_nonlinear_sin_too_fast_for_the_horizon_is_refused_naming_it(tmp_path: Path) -> None:
+    netlist = tmp_path / "thz.cir"
+    netlist.write_text(
+        "1 THz\nV1 in 0 SIN(0 1 1T)\nR1 in a 1k\nC1 a 0 1n\nB1 a 0 I={1m*v(a)*v(a)}\n.tran 1u 1m\n"
+    )
+    code, _, err = cli(["simulate", str(netlist), "-q"])
+    assert code == 1
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"{netlist}:2: V1: a SIN of 1e+12 Hz") and "NETLISTDYN_MAX_STEPS" in last
+
+
+def test_nonlinear_work_projected_past_the_limit_stops(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A sine of time inside a B source has no SIN to refuse up front: the steps are counted.
+    monkeypatch.setenv("NETLISTDYN_MAX_STEPS", "3000")
+    netlist = tmp_path / "fast.cir"
+    netlist.write_text(
+        "fast\nV1 in 0 1\nR1 in a 1k\nC1 a 0 1n\nB1 a 0 I={1m*sin(2*pi*1e9*time)}\n.tran 1u 1m\n"
+    )
+    code, _, err = cli(["simulate", str(netlist), "-q"])
+    assert code == 3, err
+    assert "failed" in err and "more than its limit of 3,000" in err

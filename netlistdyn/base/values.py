@@ -33,11 +33,13 @@ SCALE_EXPONENTS: dict[str, int] = {
 MIL = 25.4e-6
 GREEK_MU = "\u03bc"
 
-_MANTISSA = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
-_EXPONENT = re.compile(r"[eE]([+-]?)(\d+)")
+# re.ASCII: a digit is 0-9 only; Python's \d (and float()) would read full-width "１" and
+# Arabic-Indic "١" as digits, which ngspice 39 refuses.
+_MANTISSA = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)", re.ASCII)
+_EXPONENT = re.compile(r"[eE]([+-]?)(\d+)", re.ASCII)
 # Explicit cases, not re.IGNORECASE: that would fold the Greek μ (U+03BC) onto µ (U+00B5).
 _SUFFIX = re.compile("[mM][eE][gG]|[mM][iI][lL]|[tTgGkKmMuUnNpPfF\u00b5]")
-_PLAIN = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,4})?")
+_PLAIN = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,4})?", re.ASCII)
 _RKM_REST = re.compile(r"[^\W\d_]*\d[\w.]*")
 #: An exponent beyond this many digits overflows (or underflows) any float.
 _MAX_EXPONENT_DIGITS = 6

@@ -122,6 +122,8 @@ FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
 }
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
+#: The digits of a number (ASCII only: ngspice 39 refuses full-width and Arabic-Indic digits).
+_DIGITS = frozenset("0123456789")
 _OPERATORS = ("**", "==", "!=", "<=", ">=", "&&", "||", "+", "-", "*", "/", "%", "^", "<", ">", "!", "?", ":")
 #: Binary operators: (precedence, left associative).
 _BINARY: dict[str, int] = {
@@ -172,7 +174,7 @@ def _tokenize(text: str) -> list[tuple[str, object]]:
         if char.isspace():
             pos += 1
             continue
-        if char.isdigit() or (char == "." and pos + 1 < n and text[pos + 1].isdigit()):
+        if char in _DIGITS or (char == "." and pos + 1 < n and text[pos + 1] in _DIGITS):
             end = pos
             while end < n and (text[end].isalnum() or text[end] in ".\u00b5\u03bc"):
                 end += 1

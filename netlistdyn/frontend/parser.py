@@ -33,6 +33,7 @@ from pathlib import Path
 
 from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
 from netlistdyn.base.values import read_number
+from netlistdyn.circuit.checks import check_netlist
 from netlistdyn.circuit.expressions import (
     Expression,
     ExpressionError,
@@ -261,7 +262,9 @@ class _Frame:
     index: int = 0
 
 
-def read_lines(path: Path, text: str, notes: list[Diagnostic] | None = None) -> tuple[str, list[Line]]:
+def read_lines(
+    path: Path, text: str, notes: list[Diagnostic] | None = None, opened: list[Path] | None = None
+) -> tuple[str, list[Line]]:
     """Split netlist text into its title and logical lines.
 
     ``.include`` files and ``.lib file section`` sections are read in place
@@ -278,6 +281,8 @@ def read_lines(path: Path, text: str, notes: list[Diagnostic] | None = None) -> 
         Contents of the file.
     notes : list of Diagnostic, optional
         Receives notes (e.g. an LTspice ``.lib file`` read as an include).
+    opened : list of Path, optional
+        Receives every ``.include`` and ``.lib`` file read (resolved), in the order read.
 
     Returns
     -------
@@ -291,6 +296,8 @@ def read_lines(path: Path, text: str, notes: list[Diagnostic] | None = None) -> 
     stack = [_Frame(first, path, (path.resolve(),))]
     while stack:
         frame = stack[-1]
+        if opened is not None and frame.index == 0 and len(stack) > 1 and frame.path not in opened:
+            opened.append(frame.path)
         if frame.index >= len(frame.lines):
             stack.pop()
             continue
@@ -341,7 +348,10 @@ def read_lines(path: Path, text: str, notes: list[Diagnostic] | None = None) -> 
 
 
 def _open_include(frame: _Frame, name: str, line: Line, word: str) -> _Frame:
-    target = (frame.path.parent / os.path.expanduser(name)).resolve()
+    try:
+        target = (frame.path.parent / os.path.expanduser(name)).resolve()
+    except (RuntimeError, OSError):  # a loop of symbolic links (RuntimeError before Python 3.13)
+        raise NetlistError(f"{word} {name}: a loop of symbolic links", line.loc) from None
     if target in frame.chain:
         cycle = " -> ".join(p.name for p in (*frame.chain[frame.chain.index(target) :], target))
         raise NetlistError(f"include loop: {cycle}", line.loc)
@@ -1718,7 +1728,9 @@ def parse_text(
     if not elements:
         raise NetlistError("the netlist has no elements", SourceLocation(path, 1))
     elements = resolve_rods(elements)
-    return Netlist(title, path, tuple(elements), params, tran, tuple(warnings), tuple(ics), tuple(steps))
+    netlist = Netlist(title, path, tuple(elements), params, tran, tuple(warnings), tuple(ics), tuple(steps))
+    check_netlist(netlist)  # the references every command relies on, checked once for all
+    return netlist
 
 
 def _options_temperature(
@@ -1760,6 +1772,24 @@ def _limit_from_environment() -> int:
     return int(raw.strip())
 
 
+def netlist_files(path: str | Path, text: str | None = None) -> tuple[Path, ...]:
+    """Every file a netlist reads: itself (unless ``text`` is given: standard input), then its
+    ``.include`` and ``.lib`` files, resolved (symbolic links followed).
+
+    Raises
+    ------
+    NetlistError
+        As :func:`parse_text` for a file that cannot be read.
+    """
+    opened: list[Path] = []
+    source = Path(path)
+    if text is None:
+        text = read_source(source, SourceLocation(str(path), 0))
+        opened.append(source.resolve())
+    read_lines(source, text, None, opened)
+    return tuple(opened)
+
+
 def parse_file(
     path: str | Path, overrides: Mapping[str, float] | None = None, max_elements: int | None = None
 ) -> Netlist:
@@ -1774,6 +1804,7 @@ __all__ = [
     "Subcircuit",
     "decode",
     "evaluate_params",
+    "netlist_files",
     "parse_file",
     "parse_text",
     "read_lines",

@@ -22,6 +22,8 @@ independent.
 from __future__ import annotations
 
 import itertools
+import math
+import os
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -31,8 +33,9 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
-from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
+from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 from netlistdyn.circuit.sources import SourceValues, breakpoints, resolved_waveforms
+from netlistdyn.circuit.waveforms import Sin
 from netlistdyn.devices.models import junction_charge, junction_current
 from netlistdyn.formulation.nlsystem import NonlinearSystem
 from netlistdyn.formulation.nonlinear import NonlinearCircuit
@@ -86,6 +89,22 @@ DIVERGENCE_DECADES = 12
 FAILED_GROWTH_DECADES = 6
 
 
+#: Steps (accepted) a nonlinear transient may take; ``$NETLISTDYN_MAX_STEPS`` overrides it.
+MAX_STEPS = 1_000_000
+MAX_STEPS_VARIABLE = "NETLISTDYN_MAX_STEPS"
+#: Fewest steps an error-controlled integrator spends on one period of a sine.
+STEPS_PER_PERIOD = 20
+#: Steps between progress reports and work checks.
+PROGRESS_EVERY = 200
+#: Steps after which the work is projected to the horizon (earlier, a start-up transient's
+#: small steps would exaggerate it).
+PROJECT_AFTER = 20_000
+
+
+class WorkLimit(NetlistError):
+    """The nonlinear transient would take more steps than its limit."""
+
+
 class Diverged(NetlistError):
     """The nonlinear transient grew without bound (or to overflow) at time ``t`` (s)."""
 
@@ -133,10 +152,12 @@ def simulate_nonlinear(
     begun = _time.perf_counter()
     try:
         result = run(netlist, outputs, times, used, start, progress, method)
-    except Diverged as exc:
+    except (Diverged, WorkLimit) as exc:
         empty = np.zeros((0, len(outputs)))
         seconds = _time.perf_counter() - begun
-        return SimResult(times[:0], empty, method, setting, seconds, "diverged", exc.message, {}), how
+        status = "diverged" if isinstance(exc, Diverged) else "failed"
+        message = exc.message if isinstance(exc, Diverged) else str(exc)
+        return SimResult(times[:0], empty, method, setting, seconds, status, message, {}), how
     note = f"nonlinear transient; {result.stats['steps']} steps"
     return (
         SimResult(
@@ -289,23 +310,17 @@ def run(
         span = (float(times[-1]) / max(times.size - 1, 1), float(times[-1]))
     system = NonlinearSystem(netlist, span)
     tstop = float(times[-1])
+    check_work(netlist, system.waveforms, tstop)
     x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float)
     scale = _scale(system, times)
     atol = np.maximum(rtol * 1e-3 * scale, 1e-300)
-    limit = np.maximum(scale, np.abs(x)) * 10.0**DIVERGENCE_DECADES
-    names = system.circuit.state_names
-    where = SourceLocation(netlist.path, 0)
-
-    def growth(_t: float, y: NDArray[np.float64]) -> float:
-        """Positive while every state is finite and below its divergence limit."""
-        ratio = np.abs(y) / limit
-        return 1.0 - float(ratio.max()) if np.all(np.isfinite(ratio)) else -1.0
-
-    growth.terminal = True  # type: ignore[attr-defined]
+    watch = _Watch(netlist, system, scale, x, tstop, progress)
     edges = np.unique(np.r_[0.0, breakpoints(system.waveforms, tstop), tstop])
     states = np.zeros((times.size, system.nstates))
     steps = 0
     with single_thread():  # BLAS threads only slow the small dense solves down
+        if system.nstates:
+            watch.rhs(0.0, x)  # an overflow at the start itself (a huge --ic)
         for a, b in itertools.pairwise(edges):
             inside = (times >= a) & (times <= b)
             if system.nstates == 0:
@@ -313,7 +328,7 @@ def run(
                 continue
             implicit = method in ("BDF", "Radau", "LSODA")
             sol = solve_ivp(
-                system.f,
+                watch.rhs,
                 (a, b),
                 x,
                 method=method,
@@ -322,19 +337,12 @@ def run(
                 dense_output=True,
                 **({"jac": system.jacobian} if implicit else {}),
                 first_step=min((b - a) * 1e-6, tstop * 1e-9) or None,
-                events=growth,
+                events=watch.event,
             )
             last = sol.y[:, -1]
             grown = np.abs(last) / np.maximum(scale, np.abs(x))
             if sol.status == 1 or (sol.status != 0 and not np.all(grown < 10.0**FAILED_GROWTH_DECADES)):
-                k = int(np.nanargmax(np.where(np.isfinite(grown), grown, np.inf)))
-                t_end = float(sol.t[-1])
-                how = "to overflow" if not np.isfinite(last[k]) else f"past {grown[k]:.2g} times its scale"
-                raise Diverged(
-                    f"at t = {t_end:.6g} s {names[k]} = {last[k]:.3g} grew {how}: the solution blows up",
-                    where,
-                    t_end,
-                )
+                raise watch.diverged(float(sol.t[-1]), last, np.maximum(scale, np.abs(x)))
             if sol.status != 0:
                 raise NetlistError(
                     f"nonlinear transient failed at t = {sol.t[-1]:.6g} s: {sol.message}",
@@ -362,6 +370,140 @@ def run(
         stats,
         _time.perf_counter() - start,
     )
+
+
+def step_limit() -> int:
+    """The nonlinear transient's step limit: ``$NETLISTDYN_MAX_STEPS`` when a positive integer."""
+    text = os.environ.get(MAX_STEPS_VARIABLE, "").strip()
+    return int(text) if text.isdigit() and int(text) > 0 else MAX_STEPS
+
+
+def _fastest(netlist: Netlist, waveforms: Sequence[object]) -> tuple[Element, float] | None:
+    """The source whose sine is fastest, with its frequency (Hz); None without a SIN."""
+    best = None
+    for element, wave in zip(netlist.sources, waveforms, strict=True):
+        if isinstance(wave, Sin) and wave.freq and wave.va and (best is None or wave.freq > best[1]):
+            best = (element, float(wave.freq))
+    return best
+
+
+def check_work(netlist: Netlist, waveforms: Sequence[object], tstop: float) -> None:
+    """Refuse, before any step, a horizon holding more periods of a SIN source than the steps allow.
+
+    An error-controlled integrator follows a sine with at least :data:`STEPS_PER_PERIOD` steps a
+    period, so ``frequency × horizon × STEPS_PER_PERIOD`` steps is a lower bound of the work
+    (PULSE and PWL sources are bounded by their breakpoints, refused earlier).
+
+    Raises
+    ------
+    NetlistError
+        At the source's line, naming its frequency, the periods and the limit.
+    """
+    fastest = _fastest(netlist, waveforms)
+    if fastest is None:
+        return
+    element, freq = fastest
+    periods = freq * tstop
+    limit = step_limit()
+    if periods * STEPS_PER_PERIOD > limit:
+        raise NetlistError(
+            f"{element.name}: a SIN of {freq:.6g} Hz makes {periods:.3g} periods over the {tstop:.6g} s "
+            f"horizon; the nonlinear transient needs {STEPS_PER_PERIOD} steps a period at least, more than "
+            f"its limit of {limit:,} steps: shorten the horizon or set {MAX_STEPS_VARIABLE}",
+            element.loc,
+        )
+
+
+class _Watch:
+    """What one nonlinear run watches at every step: growth, overflow, work and progress.
+
+    Parameters
+    ----------
+    netlist, system
+        The circuit being integrated.
+    scale : ndarray
+        Each state's natural scale (:func:`_scale`).
+    x0 : ndarray
+        The starting state (a state starting large is measured against its start).
+    tstop : float
+        The horizon (s).
+    progress : callable, optional
+        Called with the fraction done, every :data:`PROGRESS_EVERY` steps.
+    """
+
+    def __init__(
+        self,
+        netlist: Netlist,
+        system: NonlinearSystem,
+        scale: NDArray[np.float64],
+        x0: NDArray[np.float64],
+        tstop: float,
+        progress: Callable[[float], None] | None,
+    ) -> None:
+        self.netlist, self.system = netlist, system
+        self.limit = np.maximum(scale, np.abs(x0)) * 10.0**DIVERGENCE_DECADES
+        self.base = np.maximum(scale, np.abs(x0))
+        self.tstop, self.progress = tstop, progress
+        self.steps = 0
+        self.max_steps = step_limit()
+        self.where = SourceLocation(netlist.path, 0)
+
+    def rhs(self, t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``f(t, y)``; an overflow (or a non-finite value) is a divergence at ``t``."""
+        try:
+            with np.errstate(all="ignore"):
+                dy = self.system.f(t, y)
+        except (OverflowError, FloatingPointError):
+            dy = None
+        if dy is None or not np.all(np.isfinite(dy)):
+            raise self.diverged(t, y, self.base, overflow=True)
+        return dy
+
+    def event(self, t: float, y: NDArray[np.float64]) -> float:
+        """Positive while every state is finite and below its limit; counts the steps (solve_ivp
+        evaluates it once per accepted step) and stops a run whose work passes the limit."""
+        self.steps += 1
+        if self.steps % PROGRESS_EVERY == 0:
+            self._check_work(t)
+        ratio = np.abs(y) / self.limit
+        return 1.0 - float(ratio.max()) if np.all(np.isfinite(ratio)) else -1.0
+
+    def _check_work(self, t: float) -> None:
+        done = t / self.tstop if self.tstop > 0 else 1.0
+        if self.progress is not None:
+            self.progress(done)
+        projected = self.steps / done if done > 0 else math.inf
+        if self.steps >= self.max_steps or (self.steps >= PROJECT_AFTER and projected > self.max_steps):
+            fastest = _fastest(self.netlist, self.system.waveforms)
+            why = (
+                f"; the fastest source is {fastest[0].name}, a SIN of {fastest[1]:.6g} Hz"
+                if fastest is not None
+                else ""
+            )
+            raise WorkLimit(
+                f"the nonlinear transient took {self.steps:,} steps to reach t = {t:.6g} s of "
+                f"{self.tstop:.6g} s: at that pace it needs about {projected:.2g}, more than its limit of "
+                f"{self.max_steps:,}{why}; shorten the horizon or set {MAX_STEPS_VARIABLE}",
+                fastest[0].loc if fastest is not None else self.where,
+            )
+
+    def diverged(
+        self, t: float, y: NDArray[np.float64], base: NDArray[np.float64], overflow: bool = False
+    ) -> Diverged:
+        """The error for a run that blew up at ``t`` with state ``y``, naming the largest state."""
+        grown = np.abs(y) / base
+        k = int(np.argmax(np.where(np.isfinite(grown), grown, np.inf)))
+        names = self.system.circuit.state_names
+        if overflow and np.isfinite(y[k]):
+            how = f"the equations overflow at {names[k]} = {y[k]:.3g}"
+        elif not np.isfinite(y[k]):
+            how = f"{names[k]} grew to overflow"
+        else:
+            how = f"{names[k]} = {y[k]:.3g} grew past {grown[k]:.2g} times its scale"
+        return Diverged(f"at t = {t:.6g} s {how}: the solution blows up", self.where, t)
+
+
+_Watch.event.terminal = True  # type: ignore[attr-defined]  # solve_ivp: the event ends the run
 
 
 def _scale(system: NonlinearSystem, times: NDArray[np.float64]) -> NDArray[np.float64]:

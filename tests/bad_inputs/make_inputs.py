@@ -313,6 +313,65 @@ option("symbolic_minimal", ["analyze", F, "--symbolic", "--minimal"], "--minimal
 option("connect_bad_how", ["connect", "parallel", F, F], "Invalid value", "parallel")
 option("connect_sign_bogus", ["connect", "series", F, F, "--sign", "2"], "Invalid value", "--sign")
 
+# --- issue 29: outputs that are inputs, references on every command, non-ASCII digits, work ----
+# An output that is an input (the netlist, an .include file, a model given to connect) is refused
+# before any work: nothing is written, the input is intact.
+option("out_is_netlist", ["analyze", F, "-o", F], "refusing to overwrite", "-o")
+option("csv_is_netlist", ["simulate", F, "--csv", F], "refusing to overwrite", "--csv")
+option("save_is_netlist", ["analyze", F, "--save", "m.json", "--bode", F], "refusing to overwrite", "--bode")
+option("op_out_is_netlist", ["op", F, "-o", F], "refusing to overwrite", "-o")
+option("sweep_out_is_netlist", ["sweep", F, "--param", "R1=1,2", "-o", F], "refusing to overwrite", "-o")
+_add(
+    "out_is_include.cir",
+    ["simulate", "{file}", "--plot", "aux_included.inc"],
+    2,
+    "--plot",
+    "refusing to overwrite",
+    text=TITLE + "V1 a 0 1\nR1 a 0 1\n.include aux_included.inc\n",
+)
+_add(
+    "connect_out_is_model.json",
+    ["connect", "series", "{file}", "{file}", "-o", "{file}"],
+    2,
+    "-o",
+    "refusing to overwrite",
+    text=json.dumps(
+        {"states": ["q"], "inputs": ["u"], "outputs": ["y"], "A": [[-1]], "B": [[1]], "C": [[1]], "D": [[0]]}
+    ),
+)
+# References are checked by one pass after parsing, so op and the nonlinear simulate (a diode
+# makes the netlist nonlinear) refuse them as analyze does, at the element's line.
+D = "D1 a 0 dm\n.model dm D\n"
+for command in ("op", "simulate", "analyze"):
+    netlist(
+        f"nonlinear_unknown_control_node_{command}",
+        V + "R1 a 0 1\nE1 b 0 zz 0 2\nR2 b 0 1\n" + D,
+        4,
+        "'zz'",
+        args=[command, "{file}"],
+    )
+    netlist(
+        f"nonlinear_unknown_sense_source_{command}",
+        V + "R1 a 0 1\nF1 b 0 Vx 2\nR2 b 0 1\n" + D,
+        4,
+        "not a voltage source",
+        args=[command, "{file}"],
+    )
+    netlist(
+        f"nonlinear_unknown_coupled_inductor_{command}",
+        V + "R1 a b 1\nL1 b 0 1\nK1 L1 L2 0.5\n" + D,
+        5,
+        "not an inductor",
+        args=[command, "{file}"],
+    )
+netlist(
+    "ic_unknown_node_op", V + "R1 a 0 1\n" + D + ".ic v(zz)=1\n", 6, "no node 'zz'", args=["op", "{file}"]
+)
+# Digits are ASCII: ngspice 39 refuses full-width and Arabic-Indic digits and superscripts.
+netlist("param_superscript", ".param R1=\u00b2\n" + V + "R1 a 0 {R1}\n", 2, "'\u00b2'")
+netlist("full_width_digit", V + "R1 a 0 \uff11k\n", 3, "R1")
+netlist("arabic_indic_digits", V + "R1 a 0 {\u0661\u0660\u0660\u0660}\n", 3, "R1")
+
 # --- saved models for connect -------------------------------------------------------------
 MODEL = {
     "title": "one RC",
@@ -450,6 +509,7 @@ def write() -> None:
         manifest.append(case)
     # Auxiliary files named by the .include cases (not cases themselves).
     (HERE / "binary.bin").write_bytes(bytes(range(256)) * 8)
+    (HERE / "aux_included.inc").write_text("* an included file (an output naming it is refused)\nR9 a 0 1k\n")
     (HERE / "manifest.json").write_text(json.dumps(manifest, indent=1, ensure_ascii=False) + "\n")
     print(f"{len(manifest)} cases")
 

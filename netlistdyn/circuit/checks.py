@@ -1,0 +1,88 @@
+"""The checks every netlist passes before any command works on it.
+
+One pass over the parsed elements, run by the parser at the end of every parse, so that ``analyze``,
+``op``, ``simulate`` (linear and nonlinear), ``validate`` and ``sweep`` agree on what a netlist may
+reference: a controlling node is a node of the circuit, a controlling element is a voltage source,
+a coupling joins two distinct inductors, an ``.ic`` names a node other than ground, and every node
+has a path to ground. Each failure is one :class:`~netlistdyn.base.errors.TopologyError` naming the
+element and its line (the messages are those of the linear compiler's graph, which checks the same).
+"""
+
+from __future__ import annotations
+
+from netlistdyn.base.errors import NetlistError, TopologyError
+from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
+
+#: Kinds a coupling ``K`` may join (a nonlinear inductor is refused later, with its own reason).
+COUPLED_KINDS = (Kind.INDUCTOR, Kind.INDUCTANCE)
+
+
+def check_netlist(netlist: Netlist) -> None:
+    """Refuse a netlist whose references or connections no analysis can use.
+
+    Raises
+    ------
+    TopologyError
+        A controlling node that no element connects, a controlling element that is not a
+        voltage source, a coupling of anything but two distinct inductors, or a node with no
+        path to ground.
+    NetlistError
+        An ``.ic`` on ground or on a node the netlist does not have.
+    """
+    nodes = {GROUND, *netlist.nodes}
+    by_key = {e.key: e for e in netlist.elements}
+    for element in netlist.elements:
+        for node in element.control_nodes or ():
+            if node not in nodes:
+                raise TopologyError(
+                    f"{element.label}: controlling node {node!r} is not connected to any element", element.loc
+                )
+        if element.control_source is not None:
+            sense = by_key.get(element.control_source)
+            if sense is None or sense.kind is not Kind.VSOURCE:
+                raise TopologyError(
+                    f"{element.label}: controlling element {element.control_source!r} "
+                    "is not a voltage source in this netlist",
+                    element.loc,
+                )
+        if element.coupled is not None:
+            for name in element.coupled:
+                other = by_key.get(name)
+                if other is None or other.kind not in COUPLED_KINDS:
+                    raise TopologyError(
+                        f"{element.label}: {name!r} is not an inductor in this netlist", element.loc
+                    )
+            if element.coupled[0] == element.coupled[1]:
+                raise TopologyError(f"{element.label}: couples {element.coupled[0]} with itself", element.loc)
+    for ic in netlist.initial_conditions:
+        if ic.node == GROUND:
+            raise NetlistError(".ic: the ground node's voltage is 0 by definition", ic.loc)
+        if ic.node not in nodes:
+            raise NetlistError(f".ic: no node {ic.node!r} in the netlist", ic.loc)
+    _check_grounded(netlist)
+
+
+def _check_grounded(netlist: Netlist) -> None:
+    """Every node reaches ground through elements (a coupling is no connection)."""
+    parent: dict[str, str] = {}
+
+    def root(node: str) -> str:
+        parent.setdefault(node, node)
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    for element in netlist.elements:
+        if element.kind is Kind.COUPLING:
+            continue
+        ends = element.nodes
+        for a, b in zip(ends[::2], ends[1::2], strict=False):
+            parent[root(a)] = root(b)
+    ground = root(GROUND)
+    floating = [n for n in netlist.nodes if root(n) != ground]
+    if not floating:
+        return
+    culprit = next(e for e in netlist.elements if any(n in floating for n in e.nodes))
+    shown = ", ".join(floating[:5]) + (", ..." if len(floating) > 5 else "")
+    raise TopologyError(f"{culprit.label}: node(s) {shown} have no path to ground (node 0)", culprit.loc)
