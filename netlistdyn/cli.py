@@ -20,6 +20,7 @@ import click
 
 from netlistdyn.base.atomic import STDOUT, check_writable, install_signal_cleanup, write_text
 from netlistdyn.base.errors import ControlDimension, NetlistError, UsageError
+from netlistdyn.base.optional import require
 from netlistdyn.base.values import parse_number, split_number
 
 METHOD_CHOICES = ("auto", "exact", "rational", "krylov", "RK45", "DOP853", "Radau", "BDF", "LSODA")
@@ -138,6 +139,8 @@ def check_outputs(inputs: tuple[str, ...] = (), **paths: str | None) -> None:
         problem = check_writable(path, option)
         if problem:
             raise UsageError(problem)
+        if key in ("plot", "bode", "animate"):  # before any work: the figure needs matplotlib
+            require("matplotlib", option)
         if key == "save":
             from netlistdyn.io.exports import FORMATS
 

@@ -7,6 +7,7 @@ status, no file written) and compare numbers with closed forms or ``ngspice -b``
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -204,3 +205,26 @@ def test_nonlinear_work_projected_past_the_limit_stops(
     code, _, err = cli(["simulate", str(netlist), "-q"])
     assert code == 3, err
     assert "failed" in err and "more than its limit of 3,000" in err
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["simulate", "{n}", "--plot", "{d}/p.png"], "--plot"),
+        (["analyze", "{n}", "--bode", "{d}/b.png"], "--bode"),
+        (["sweep", "{n}", "--param", "R1=1,2", "--plot", "{d}/l.png"], "--plot"),
+        (["simulate", "{n}", "--animate", "{d}/a.gif"], "--animate"),
+    ],
+)
+def test_figure_without_matplotlib_says_how_to_install_before_any_work(
+    args: list[str], option: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib now fails
+    netlist = str(Path(__file__).resolve().parent.parent / "netlists" / "circuit1.cir")
+    code, out, err = cli([a.format(n=netlist, d=tmp_path) for a in args] + ["-q"])
+    assert code == 2, err
+    assert err.strip() == (
+        f"netlistdyn: error: {option} needs matplotlib, which is not installed: "
+        "pip install 'netlistdyn[plot]' (or pip install matplotlib)"
+    )
+    assert out == "" and list(tmp_path.iterdir()) == []

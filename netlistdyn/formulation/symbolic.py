@@ -28,16 +28,14 @@ import numpy as np
 
 from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.base.formatting import latex_label
+from netlistdyn.base.optional import missing
 from netlistdyn.devices.units import element_unit
 
 try:
     import sympy
     from sympy.polys.matrices import DomainMatrix
 except ImportError:  # sympy is the optional "symbolic" extra
-    raise UsageError(
-        "--symbolic needs sympy, which is not installed: "
-        "pip install 'netlistdyn[symbolic]' (or pip install sympy)"
-    ) from None
+    raise missing("sympy", "--symbolic") from None
 from netlistdyn.circuit.netlist import Element, Kind, Netlist
 from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD, carried_masses
 from netlistdyn.formulation.algebra import Block

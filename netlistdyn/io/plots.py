@@ -18,16 +18,14 @@ from numpy.typing import NDArray
 
 from netlistdyn.base.atomic import write_bytes
 from netlistdyn.base.errors import UsageError
+from netlistdyn.base.optional import require
 from netlistdyn.io.bode import bode
 
 
 def _figure() -> Any:
-    import matplotlib
-
+    matplotlib = require("matplotlib", "a figure (--plot, --bode)")
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return require("matplotlib.pyplot", "a figure (--plot, --bode)")
 
 
 def geometric(values: NDArray[np.float64]) -> bool:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.base.optional import missing
 from netlistdyn.base.values import parse_number
 from netlistdyn.formulation.compile import Formulation
 
@@ -361,10 +362,7 @@ def _run_on_dask(
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise UsageError(
-            f"--scheduler {scheduler} needs Dask: pip install 'dask[distributed]' "
-            "(or use --scheduler processes)"
-        ) from None
+        raise missing("dask.distributed", f"--scheduler {scheduler}") from None
     if scheduler == "dask":
         with (
             LocalCluster(
