@@ -196,7 +196,7 @@ def parse_netlist(netlist: str, overrides: dict[str, float] | None = None, text:
 
 
 def stdin_text() -> str:
-    """Standard input as a netlist's text (UTF-8, no NUL bytes).
+    """Standard input as a netlist's text (UTF-8, else cp1252, as a file; no NUL bytes).
 
     Read once per command: the text is kept in the click context, so a
     command may parse the netlist ``-`` more than once.
@@ -204,15 +204,13 @@ def stdin_text() -> str:
     ctx = click.get_current_context(silent=True)
     if ctx is not None and "netlistdyn.stdin" in ctx.meta:
         return str(ctx.meta["netlistdyn.stdin"])
+    from netlistdyn.frontend.parser import decode
+
     try:
         data = click.get_binary_stream("stdin").read()
-        text = data.decode()
-    except UnicodeDecodeError:
-        raise NetlistError("cannot read netlist: not a text file", _stdin_loc()) from None
     except OSError as exc:
         raise NetlistError(f"cannot read netlist: {exc.strerror or exc}", _stdin_loc()) from None
-    if "\0" in text:
-        raise NetlistError("cannot read netlist: not a text file", _stdin_loc())
+    text = decode(data, _stdin_loc())  # as a file given by name: UTF-8, else cp1252/Latin-1
     if ctx is not None:
         ctx.meta["netlistdyn.stdin"] = text
     return text

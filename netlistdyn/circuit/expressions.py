@@ -42,6 +42,27 @@ CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
 MAX_TOKENS = 1_000_000
 #: Nesting depth of user ``.func`` calls (a recursive ``.func`` is an error).
 MAX_CALL_DEPTH = 64
+#: Work one evaluation may do in user ``.func`` calls, counted as the characters of the bodies
+#: evaluated: the depth limit alone lets a ``.func`` calling the previous one twice, 40 levels
+#: deep, make 2**40 calls. 2,000,000 is about a second of evaluation; real netlists use far less.
+MAX_EVALUATION_WORK = 2_000_000
+
+
+class _Work:
+    """What is left of :data:`MAX_EVALUATION_WORK` for one evaluation (shared by its nested calls)."""
+
+    __slots__ = ("left",)
+
+    def __init__(self) -> None:
+        self.left = MAX_EVALUATION_WORK
+
+    def spend(self, amount: int, name: str) -> None:
+        self.left -= amount
+        if self.left < 0:
+            raise ExpressionError(
+                f".func {name}: the nested .func calls need more than {MAX_EVALUATION_WORK:,} steps "
+                "to evaluate (a function calling another more than once, many levels deep)"
+            )
 
 
 class ExpressionError(ValueError):
@@ -89,6 +110,10 @@ def _sgn(x: float) -> float:
     return float((x > 0) - (x < 0))
 
 
+#: Functions of B sources only (ngspice 39: "Undefined parameter" in a .param): the step u(x)
+#: and the ramp uramp(x) of a node voltage, branch current or time.
+BEHAVIOURAL_ONLY = frozenset({"u", "uramp"})
+
 #: Functions by name: (callable, least, most arguments).
 FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
     "sqrt": (_sqrt, 1, 1),
@@ -114,8 +139,9 @@ FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
     "nint": (lambda x: float(round(x)), 1, 1),
     "floor": (lambda x: float(math.floor(x)), 1, 1),
     "ceil": (lambda x: float(math.ceil(x)), 1, 1),
-    "min": (min, 1, 64),
-    "max": (max, 1, 64),
+    # Two arguments at least: ngspice 39 reads min(x) as min(x, 1) and max(x) as max(x, 1).
+    "min": (lambda *a: min(a), 2, 64),
+    "max": (lambda *a: max(a), 2, 64),
     "pow": (_pow, 2, 2),
     "pwr": (_pwr, 2, 2),
     "ternary_fcn": (lambda c, a, b: a if c else b, 3, 3),
@@ -555,10 +581,12 @@ class _Evaluator(Hooks[float | Linear]):
         params: Mapping[str, float],
         functions: Mapping[str, tuple[tuple[str, ...], Expression]],
         depth: int = 0,
+        work: _Work | None = None,
     ) -> None:
         self.params = params
         self.functions = functions
         self.depth = depth
+        self.work = work if work is not None else _Work()
 
     def run(self, tree: Node) -> float | Linear:
         result = walk(tree, self)
@@ -663,9 +691,12 @@ class _Evaluator(Hooks[float | Linear]):
                 raise ExpressionError(f".func {name} calls itself (or nests deeper than {MAX_CALL_DEPTH})")
             if any(isinstance(a, Linear) and not a.is_constant for a in args):
                 raise NonlinearError(f".func {name} applied to a node voltage or branch current")
+            self.work.spend(len(body.text) + 1, name)
             local = dict(self.params)
             local.update({f: self.number_of(a, name) for f, a in zip(formals, args, strict=True)})
-            return _Evaluator(local, self.functions, self.depth + 1).run(body.tree)
+            return _Evaluator(local, self.functions, self.depth + 1, self.work).run(body.tree)
+        if name in BEHAVIOURAL_ONLY:  # the B-source reading (a NonlinearError sends it there)
+            raise NonlinearError(f"{name}() is a B-source function (ngspice reads it only in B sources)")
         if name not in FUNCTIONS:
             if name in ("agauss", "gauss", "aunif", "unif", "limit", "rand", "sunif", "sgauss"):
                 raise ExpressionError(f"random function {name}() is not supported (Monte Carlo)")
@@ -674,6 +705,8 @@ class _Evaluator(Hooks[float | Linear]):
         if not least <= len(args) <= most:
             want = str(least) if least == most else f"{least} to {most}"
             extra = " (ngspice 39 silently uses the last of two)" if name == "log" and len(args) == 2 else ""
+            if name in ("min", "max") and len(args) == 1:
+                extra = f" (ngspice 39 reads {name}(x) as {name}(x, 1))"
             raise ExpressionError(f"{name} takes {want} argument(s), got {len(args)}{extra}")
         numbers = [self.number_of(a, f"{name}()") for a in args]
         try:

@@ -29,7 +29,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from netlistdyn.circuit.expressions import CONSTANTS, Expression, ExpressionError, Hooks, logic, parse, walk
+from netlistdyn.circuit.expressions import (
+    CONSTANTS,
+    MAX_EVALUATION_WORK,
+    Expression,
+    ExpressionError,
+    Hooks,
+    logic,
+    parse,
+    walk,
+)
 
 #: Boltzmann's constant over the electron charge (V/K), as ngspice 39's const.h.
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -144,8 +153,8 @@ FUNCTIONS: dict[str, tuple[int, int, _Func]] = {
     "nint": (1, 1, _unary(lambda x: float(round(x)), lambda x: 0.0)),
     "floor": (1, 1, _unary(lambda x: float(math.floor(x)), lambda x: 0.0)),
     "ceil": (1, 1, _unary(lambda x: float(math.ceil(x)), lambda x: 0.0)),
-    "min": (1, 64, _minmax(min)),
-    "max": (1, 64, _minmax(max)),
+    "min": (2, 64, _minmax(min)),  # ngspice 39 reads min(x) as min(x, 1): refused
+    "max": (2, 64, _minmax(max)),
     "pow": (2, 2, _pow_fn),
     "pwr": (2, 2, _pwr_fn),
 }
@@ -243,7 +252,13 @@ class _Folder(Hooks[str]):
                 raise ExpressionError(f".func {name} calls itself (or nests too deeply)")
             local = dict(zip(formals, args, strict=True))
             inner = _Folder(self.params, self.functions, self.rename, local, self.depth + 1)
-            return walk(body.tree, inner)
+            text = walk(body.tree, inner)
+            if len(text) > MAX_EVALUATION_WORK:  # nested calls double it level by level
+                raise ExpressionError(
+                    f".func {name}: the nested .func calls expand to more than {MAX_EVALUATION_WORK:,} "
+                    "characters (a function calling another more than once, many levels deep)"
+                )
+            return text
         if name == "ternary_fcn" and len(args) == 3:
             return _folded(f"({args[0]}?{args[1]}:{args[2]})")
         if name not in FUNCTIONS:

@@ -1046,6 +1046,9 @@ def _parse_func(line: Line) -> tuple[str, tuple[str, ...], Expression]:
     if match is None:
         raise NetlistError(".func: expected .func name(args) = {expression}", line.loc)
     formals = tuple(a.strip().lower() for a in match.group(2).split(",") if a.strip())
+    twice = next((a for k, a in enumerate(formals) if a in formals[:k]), None)
+    if twice is not None:  # ngspice 39 silently takes the first; a guess either way
+        raise NetlistError(f".func {match.group(1)}: parameter {twice!r} is named twice", line.loc)
     try:
         body = parse(unwrap(match.group(3).strip()))
     except ExpressionError as exc:
@@ -1127,7 +1130,7 @@ def _resolve_conditionals(
     if not any(line.text[:3].lower() == ".if" for line in lines):
         return lines
     out: list[Line] = []
-    # stack entries: [parent_active, this_branch_active, some_branch_taken, loc]
+    # stack entries: [parent_active, this_branch_active, some_branch_taken, loc, else_seen]
     stack: list[list[object]] = []
     active = True
     for line in lines:
@@ -1136,10 +1139,12 @@ def _resolve_conditionals(
         if word in (".if", ".elseif"):
             cond_text = words[1].strip() if len(words) > 1 else ""
             if word == ".if":
-                stack.append([active, False, False, line.loc])
+                stack.append([active, False, False, line.loc, False])
             elif not stack:
                 raise NetlistError(".elseif without .if", line.loc)
             frame = stack[-1]
+            if frame[4]:
+                raise NetlistError(f".elseif after the .else of the .if at {frame[3]}", line.loc)
             parent = bool(frame[0])
             if frame[2] or not parent:
                 frame[1] = False
@@ -1160,6 +1165,9 @@ def _resolve_conditionals(
             if not stack:
                 raise NetlistError(".else without .if", line.loc)
             frame = stack[-1]
+            if frame[4]:
+                raise NetlistError(f"a second .else in the .if at {frame[3]}", line.loc)
+            frame[4] = True
             frame[1] = bool(frame[0]) and not frame[2]
             frame[2] = True
             active = bool(frame[1])
