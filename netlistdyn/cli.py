@@ -19,6 +19,7 @@ from typing import Any
 import click
 
 from netlistdyn.base.atomic import STDOUT, check_writable, install_signal_cleanup, write_text
+from netlistdyn.base.caught_warnings import CaughtWarnings
 from netlistdyn.base.errors import ControlDimension, NetlistError, UsageError
 from netlistdyn.base.optional import require
 from netlistdyn.base.values import parse_number, split_number
@@ -255,9 +256,15 @@ def csv_beside_report(csv_path: str | None, out: str | None, fmt: str) -> str | 
 
 
 def run_guarded(action: Callable[[], int | None]) -> None:
-    """Run a command body, turning errors into one-line messages and exit codes."""
+    """Run a command body, turning errors into one-line messages and exit codes.
+
+    Warnings (numpy's floating-point RuntimeWarnings) are caught and, when the command
+    succeeded, summed up in one line; a failed command's own message replaces them.
+    """
+    caught = CaughtWarnings()
     try:
-        code = action() or 0
+        with caught:
+            code = action() or 0
     except NetlistError as exc:
         click.echo(shorten(str(exc)), err=True)
         sys.exit(EXIT_NETLIST)
@@ -281,6 +288,9 @@ def run_guarded(action: Callable[[], int | None]) -> None:
         message = shorten(f"{type(exc).__name__}: {exc}")
         click.echo(f"netlistdyn: internal error: {message} (please report)", err=True)
         sys.exit(EXIT_INTERNAL)
+    summary = caught.line()
+    if summary is not None and code == 0:
+        click.echo(shorten(summary), err=True)
     sys.exit(code)
 
 

@@ -326,3 +326,66 @@ def test_cp1252_netlist_on_stdin_reads_as_by_name(tmp_path: Path) -> None:
     assert code_file == 0 and result.exit_code == 0, (err_file, result.stderr)
     ours, theirs = json.loads(by_name), json.loads(result.stdout)
     assert ours["A"] == theirs["A"] and ours["title"] == theirs["title"] == "cp1252 \u00b5"
+
+
+# --- class 5: messages: warnings in one line, the element named when there is no operating point
+
+
+@pytest.mark.parametrize(
+    ("body", "line", "fragment"),
+    [
+        ("V1 in 0 1\nR1 in a 1k\nB1 a 0 I={1/v(a)}\n", 4, "B1: division by zero at Newton's starting point"),
+        ("V1 in 0 1\nR1 in a 1k\nB1 a 0 I={sqrt(v(a)-5)}\n", 4, "B1: sqrt()"),
+        ("V1 a 0 1\nB1 a 0 V={2*v(a)}\nR1 a 0 1\n", 3, "B1: loop of voltage sources only (B1, V1)"),
+        ("V1 a 0 1\nR1 a 0 1\nD1 x y dm\n.model dm D\n", 4, "D1: node(s) x, y have no path to ground"),
+    ],
+    ids=["division", "sqrt", "b-loop", "floating-diode"],
+)
+@pytest.mark.parametrize("command", ["op", "simulate"])
+def test_no_operating_point_names_the_element(
+    command: str, body: str, line: int, fragment: str, tmp_path: Path
+) -> None:
+    netlist = tmp_path / "n.cir"
+    netlist.write_text("t\n" + body)
+    code, _, err = cli([command, str(netlist), *(["-q"] if command == "simulate" else [])])
+    assert code == 1, err
+    assert err.strip().splitlines()[-1].startswith(f"{netlist}:{line}: "), err
+    assert fragment in err
+
+
+def test_dc_loop_through_an_inductor_is_named_by_op(tmp_path: Path) -> None:
+    # At DC an inductor is a short: V1's node a and B2's node b are joined through L1 and B1.
+    # (The transient is fine: there the inductor's current is a state.)
+    netlist = tmp_path / "n.cir"
+    netlist.write_text("t\nV1 a 0 1\nR1 a b 1\nL1 b c 1m\nB1 c 0 V={v(a)*2}\nB2 b 0 V={v(a)}\n")
+    code, _, err = cli(["op", str(netlist)])
+    assert code == 1
+    assert err.strip() == (
+        f"{netlist}:6: B2: loop of voltage sources and inductors only (B2, B1, L1): "
+        "the current around it is undetermined, so there is no operating point"
+    )
+
+
+def test_numpy_warnings_are_one_clean_line(tmp_path: Path) -> None:
+    netlist = tmp_path / "e.cir"
+    netlist.write_text("exp\nV1 in 0 1k\nR1 in a 1k\nB1 a 0 I={exp(v(in))}\nR2 a 0 1\n")
+    code, _, err = cli(["op", str(netlist)])
+    assert code == 1  # exp(1000) overflows: no operating point (ngspice prints v(a) = -1e99)
+    assert err.count("\n") == 1 and "RuntimeWarning" not in err and ".py" not in err, err
+    circuit1 = str(Path(__file__).resolve().parent.parent / "netlists" / "circuit1.cir")
+    code, _, err = cli(["simulate", circuit1, "--method", "euler", "--step", "1", "--tstop", "1000", "-q"])
+    assert code == 3 and err.strip() == "netlistdyn: euler diverged: the solution became non-finite", err
+
+
+def test_a_warning_of_a_successful_command_is_summed_up_in_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    import numpy as np
+
+    from netlistdyn.base.caught_warnings import CaughtWarnings
+
+    with CaughtWarnings() as caught:
+        for _ in range(3):
+            with np.errstate(over="warn"):
+                np.exp(np.array([1000.0]))
+    line = caught.line()
+    assert line is not None and line.startswith("netlistdyn: warning: floating-point trouble")
+    assert "overflow encountered in exp" in line and "\n" not in line

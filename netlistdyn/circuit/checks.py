@@ -11,7 +11,7 @@ element and its line (the messages are those of the linear compiler's graph, whi
 from __future__ import annotations
 
 from netlistdyn.base.errors import NetlistError, TopologyError
-from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
+from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 
 #: Kinds a coupling ``K`` may join (a nonlinear inductor is refused later, with its own reason).
 COUPLED_KINDS = (Kind.INDUCTOR, Kind.INDUCTANCE)
@@ -86,3 +86,56 @@ def _check_grounded(netlist: Netlist) -> None:
     culprit = next(e for e in netlist.elements if any(n in floating for n in e.nodes))
     shown = ", ".join(floating[:5]) + (", ..." if len(floating) > 5 else "")
     raise TopologyError(f"{culprit.label}: node(s) {shown} have no path to ground (node 0)", culprit.loc)
+
+
+#: Branches that fix a voltage (at DC an inductor is a short and fixes one too).
+VOLTAGE_KINDS = frozenset({Kind.VSOURCE, Kind.VCVS, Kind.CCVS, Kind.BVOLTAGE})
+
+
+def voltage_loop(netlist: Netlist, kinds: frozenset[Kind] = VOLTAGE_KINDS) -> tuple[Element, ...]:
+    """The first loop of voltage-fixing branches (of ``kinds``), the closing one first; () when none.
+
+    Such a loop leaves the current around it undetermined (and its voltages inconsistent unless
+    they happen to sum to zero): no operating point exists, whatever Newton's method tries. A
+    branch with both ends on one node is a loop by itself.
+    """
+    links: dict[str, list[tuple[str, Element]]] = {}
+    parent: dict[str, str] = {}
+
+    def root(node: str) -> str:
+        parent.setdefault(node, node)
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    for element in netlist.elements:
+        if element.kind not in kinds:
+            continue
+        a, b = element.nodes[0], element.nodes[1]
+        if root(a) == root(b):
+            return (element, *_path(links, a, b))
+        parent[root(a)] = root(b)
+        links.setdefault(a, []).append((b, element))
+        links.setdefault(b, []).append((a, element))
+    return ()
+
+
+def _path(links: dict[str, list[tuple[str, Element]]], start: str, goal: str) -> list[Element]:
+    """The elements on the forest path from ``start`` to ``goal`` (breadth first)."""
+    came: dict[str, tuple[str, Element] | None] = {start: None}
+    queue = [start]
+    for node in queue:
+        if node == goal:
+            break
+        for other, element in links.get(node, ()):
+            if other not in came:
+                came[other] = (node, element)
+                queue.append(other)
+    path: list[Element] = []
+    node = goal
+    while came.get(node) is not None:
+        previous, element = came[node]  # type: ignore[misc]
+        path.append(element)
+        node = previous
+    return path

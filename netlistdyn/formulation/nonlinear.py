@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 from scipy.integrate import IntegrationWarning, quad
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
+from netlistdyn.circuit.checks import VOLTAGE_KINDS, voltage_loop
 from netlistdyn.circuit.expressions import ExpressionError
 from netlistdyn.circuit.netlist import GROUND, STORAGE_KINDS, Element, Kind, Netlist
 from netlistdyn.devices.mechanics import state_prefix
@@ -1007,6 +1008,7 @@ class NonlinearCircuit:
                         ok = False
                         break
         if not ok:
+            self._why_no_point(z0, mode, b, t, mode == "dc")
             raise NoOperatingPoint(
                 "no operating point (for a mechanism: no static equilibrium): Newton's method, gmin stepping "
                 "and source stepping all failed "
@@ -1015,6 +1017,41 @@ class NonlinearCircuit:
             )
         F, _ = self.evaluate(z, mode, b, t)
         return self._point(z, u, total, float(np.max(np.abs(F))) if F.size else 0.0, method)
+
+    def _why_no_point(
+        self, z0: NDArray[np.float64], mode: str, b: NDArray[np.float64], t: float, dc: bool
+    ) -> None:
+        """Name the element when the operating point cannot exist or cannot be started.
+
+        Raises
+        ------
+        NoOperatingPoint
+            At the element's line: a loop of voltage sources (B V= and, at DC, inductors among
+            them) leaves the loop's current undetermined; an expression that cannot be evaluated
+            at Newton's starting point (every node at 0 V: a division by v(n), sqrt or log of a
+            negative number) gives Newton nothing to start from.
+        """
+        kinds = VOLTAGE_KINDS | ({Kind.INDUCTOR, Kind.INDUCTANCE} if dc else set())
+        loop = voltage_loop(self.netlist, frozenset(kinds))
+        if loop:
+            names = ", ".join(e.label for e in loop)
+            what = (
+                "voltage sources and inductors"
+                if any(e.kind in INDUCTOR_KINDS for e in loop)
+                else "voltage sources"
+            )
+            raise NoOperatingPoint(
+                f"{loop[0].label}: loop of {what} only ({names}): "
+                "the current around it is undetermined, so there is no operating point",
+                loop[0].loc,
+            )
+        try:
+            self._evaluate(z0, mode, b, t, 0.0)
+        except NetlistError as exc:
+            raise NoOperatingPoint(
+                f"{exc.message} at Newton's starting point (every node at 0 V): no operating point",
+                exc.loc,
+            ) from None
 
     def _point(
         self, z: NDArray[np.float64], u: NDArray[np.float64], its: int, res: float, method: str
