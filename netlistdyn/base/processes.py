@@ -103,6 +103,32 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
+def detached_worker() -> None:
+    """Initialiser of a pool worker: its own process group, and killed when its parent dies.
+
+    In its own group a terminal's Ctrl-C reaches the parent alone, which then ends its workers
+    (:func:`end_workers`); should the parent be killed outright (SIGKILL, or SIGTERM re-raised
+    after the cleanup), the kernel kills the worker too (Linux ``PR_SET_PDEATHSIG``).
+    """
+    with contextlib.suppress(OSError):
+        os.setpgid(0, 0)
+    _die_with_parent()
+
+
+def end_workers(processes: Any) -> None:
+    """Kill the worker processes of a pool now (a stopped command must not wait for their tasks).
+
+    ``processes`` is the pool's mapping or sequence of :class:`multiprocessing.Process`.
+    """
+    members = processes.values() if hasattr(processes, "values") else processes
+    for process in list(members or ()):
+        with contextlib.suppress(Exception):
+            process.kill()
+    for process in list(members or ()):
+        with contextlib.suppress(Exception):
+            process.join(timeout=1.0)
+
+
 def run_program(
     args: list[str],
     timeout: float | None,

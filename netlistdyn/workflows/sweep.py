@@ -26,6 +26,7 @@ import numpy as np
 
 from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.base.optional import missing
+from netlistdyn.base.processes import detached_worker, end_workers
 from netlistdyn.base.values import parse_number
 from netlistdyn.formulation.compile import Formulation
 
@@ -300,10 +301,33 @@ def map_tasks(
         if jobs <= 1 or len(calls) <= 1:
             yield from (function(shared, *call) for call in calls)
             return
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            yield from pool.map(function, itertools.repeat(shared), *zip(*calls, strict=True), chunksize=1)
+        pool = ProcessPoolExecutor(max_workers=jobs, initializer=detached_worker)
+        try:
+            # submit, not map: map's clean-up cancels the pending futures, which races with the
+            # pool's own clean-up of killed workers (an InvalidStateError traceback in CPython 3.11)
+            futures = [pool.submit(function, shared, *call) for call in calls]
+            for future in futures:
+                yield future.result()
+        except BaseException:  # stopped (SIGINT, SIGTERM, the consumer gone): end the workers now
+            _stop_pool(pool)
+            raise
+        pool.shutdown()
         return
     yield from _run_on_dask(scheduler, jobs, function, shared, calls)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Kill a pool's workers and let this process exit at once (not after their tasks).
+
+    ``shutdown`` alone waits for the running tasks, and at exit the pool's queue feeder would
+    wait forever to hand tasks to the killed workers; CPython's executor has no public way to
+    say either, hence its private ``_processes`` and ``_call_queue`` (present since 3.8).
+    """
+    end_workers(getattr(pool, "_processes", None))
+    queue = getattr(pool, "_call_queue", None)
+    if queue is not None:
+        queue.cancel_join_thread()
+    pool.shutdown(wait=False)
 
 
 def run_sweep(
