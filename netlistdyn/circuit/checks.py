@@ -3,14 +3,15 @@
 One pass over the parsed elements, run by the parser at the end of every parse, so that ``analyze``,
 ``op``, ``simulate`` (linear and nonlinear), ``validate`` and ``sweep`` agree on what a netlist may
 reference: a controlling node is a node of the circuit, a controlling element is a voltage source,
-a coupling joins two distinct inductors, an ``.ic`` names a node other than ground, and every node
-has a path to ground. Each failure is one :class:`~netlistdyn.base.errors.TopologyError` naming the
+a coupling joins two distinct inductors, and every node has a path to ground. (``.ic`` lines are
+checked where a transient uses them: Xyce's ``.ic v(x3.b)`` of a subcircuit port does not stop
+``analyze``.) Each failure is one :class:`~netlistdyn.base.errors.TopologyError` naming the
 element and its line (the messages are those of the linear compiler's graph, which checks the same).
 """
 
 from __future__ import annotations
 
-from netlistdyn.base.errors import NetlistError, TopologyError
+from netlistdyn.base.errors import TopologyError
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 
 #: Kinds a coupling ``K`` may join (a nonlinear inductor is refused later, with its own reason).
@@ -26,8 +27,6 @@ def check_netlist(netlist: Netlist) -> None:
         A controlling node that no element connects, a controlling element that is not a
         voltage source, a coupling of anything but two distinct inductors, or a node with no
         path to ground.
-    NetlistError
-        An ``.ic`` on ground or on a node the netlist does not have.
     """
     nodes = {GROUND, *netlist.nodes}
     by_key = {e.key: e for e in netlist.elements}
@@ -54,11 +53,6 @@ def check_netlist(netlist: Netlist) -> None:
                     )
             if element.coupled[0] == element.coupled[1]:
                 raise TopologyError(f"{element.label}: couples {element.coupled[0]} with itself", element.loc)
-    for ic in netlist.initial_conditions:
-        if ic.node == GROUND:
-            raise NetlistError(".ic: the ground node's voltage is 0 by definition", ic.loc)
-        if ic.node not in nodes:
-            raise NetlistError(f".ic: no node {ic.node!r} in the netlist", ic.loc)
     _check_grounded(netlist)
 
 

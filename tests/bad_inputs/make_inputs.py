@@ -364,9 +364,6 @@ for command in ("op", "simulate", "analyze"):
         "not an inductor",
         args=[command, "{file}"],
     )
-netlist(
-    "ic_unknown_node_op", V + "R1 a 0 1\n" + D + ".ic v(zz)=1\n", 6, "no node 'zz'", args=["op", "{file}"]
-)
 # Digits are ASCII: ngspice 39 refuses full-width and Arabic-Indic digits and superscripts.
 netlist("param_superscript", ".param R1=\u00b2\n" + V + "R1 a 0 {R1}\n", 2, "'\u00b2'")
 netlist("full_width_digit", V + "R1 a 0 \uff11k\n", 3, "R1")
