@@ -383,9 +383,14 @@ OPEN_VIOLATIONS = [
         51,
         "rational",
         1e-8,
-        "7.6e-7 of the peak, estimate 7.7e-9 (modes 0, -1.8e-2, -4.4e3±1.1e3j, -5e7 1/s over 9.3 s)",
+        "7.6e-7 of the peak, estimate 7.7e-9 (modes 0, -1.8e-2, -4.4e3±1.1e3j, -5e7 1/s over 9.3 s); "
+        "closed by issue 28: each state's rounding counts what the step couples into it (|x| and, "
+        "weighted by min(1, h·Σ|aᵢⱼ|), its row's states), which sees that v(n3) (peak 1.6e-9 V beside "
+        "3.7e-4 V) is summed from much larger states: estimate 2.1e-8, status unverified",
     ),
 ]
+#: Closed violations: a plain test each (the result is no longer ok beyond its rtol).
+CLOSED = (51,)
 
 
 @pytest.mark.parametrize(
@@ -397,7 +402,7 @@ OPEN_VIOLATIONS = [
             rtol,
             # seed 95's error is rounding of 8e9 A modal terms in LAPACK's eigenvectors: its size
             # may differ with the BLAS, so a pass elsewhere is not an error there
-            marks=pytest.mark.xfail(reason=f"open: {why}", strict=seed != 95),
+            marks=() if seed in CLOSED else pytest.mark.xfail(reason=f"open: {why}", strict=seed != 95),
         )
         for seed, method, rtol, why in OPEN_VIOLATIONS
     ],

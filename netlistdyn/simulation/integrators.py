@@ -358,22 +358,48 @@ def _rational(
 
     scale = max(float(np.max(np.abs(x))) if n else 0.0, float(np.max(np.abs(u_events))) * 1e-12, 1e-300)
     # Outputs in balanced coordinates: y = Cb x + D u, and their peaks so far.
-    Cb = np.asarray(model.C, dtype=float) * d[None, :] if n else np.zeros((model.noutputs, 0))
-    abs_cb = np.abs(Cb)
+    # Sparse: outputs mostly read a state or two (a 1000 x 2000 dense C took a third of a run).
+    Cb = sp.csr_array(np.asarray(model.C, dtype=float) * d[None, :] if n else np.zeros((model.noutputs, 0)))
+    abs_cb = abs(Cb)
+    has_outputs = model.noutputs > 0 and n > 0
     y_peak = np.abs(Cb @ x + model.D @ u_events[0]) if model.noutputs else np.zeros(0)
+    # Each output's eventual scale: its DC value at the input's levels (0 where unknown: then
+    # its running peak alone). The step check judges an output against its running peak floored
+    # at OUTPUT_SCALE_FLOOR of this, not against the running peak of an output that is still ≈ 0
+    # (the far end of a line before the wave arrives: there the approximant's relative error is
+    # O(1) at every step length, and halving never ended). (What an output reads of the states'
+    # scale is no floor: an output far below the states, 1.6e-9 V beside 3.7e-4 V, was then
+    # judged against a scale 1e5 times its own.)
+    dc_scale = _dc_output_scale(A, B, Cb, np.asarray(model.D, dtype=float), u_events)
+    # ‖A‖₁ ≥ |λ|max: at EXACT_STEP / ‖A‖₁ the approximant is exact to rounding.
+    norm_a = float(spla.norm(A, 1)) if n else 0.0
+    abs_a = abs(sp.csr_array(A))
+    a_rows = np.asarray(abs_a.sum(axis=1)).ravel()
     horizon = float(events[-1] - events[0]) if events.size > 1 else 0.0
-    estimate, noise_level = 0.0, RATIONAL_ROUNDING
+    abs_estimate = np.zeros(model.noutputs)  # accepted output differences above rounding (units)
+    abs_noise = np.zeros(model.noutputs)  # largest rounding level of each output (its units)
 
-    def measure(diff: np.ndarray, new: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    def measure(
+        diff: np.ndarray, new: np.ndarray, h: float
+    ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A difference of two steps relative to the largest state, and relative to each output's
-        peak with each output's rounding level (at least RATIONAL_ROUNDING of its peak, and
-        OUTPUT_ROUNDING of the magnitudes |C||x| it is summed from)."""
+        scale with each output's rounding level (at least RATIONAL_ROUNDING of its scale, and
+        OUTPUT_ROUNDING of the magnitudes |C||x| it is summed from); then the outputs' differences
+        above that level and the level, in the outputs' units."""
         state_error = float(np.max(np.abs(diff))) / scale
-        if not abs_cb.size:
-            return state_error, np.zeros(0), np.zeros(0)
-        den = np.maximum(y_peak, np.finfo(float).tiny)
-        noise = np.maximum(OUTPUT_ROUNDING * (abs_cb @ np.abs(new)) / den, RATIONAL_ROUNDING)
-        return state_error, np.abs(Cb @ diff) / den, noise
+        if not has_outputs:
+            empty = np.zeros(0)
+            return state_error, empty, empty, empty, empty
+        den = np.maximum(np.maximum(y_peak, OUTPUT_SCALE_FLOOR * dc_scale), np.finfo(float).tiny)
+        # A state's rounding is relative to what the step couples into it: its own magnitude and,
+        # weighted by min(1, h·Σⱼ|aᵢⱼ|), the average magnitude of the states in its row of A.
+        magnitude = np.abs(new)
+        coupled = np.minimum(1.0, h * a_rows) * (abs_a @ magnitude) / np.where(a_rows > 0, a_rows, 1.0)
+        rounding = OUTPUT_ROUNDING * (abs_cb @ (magnitude + coupled))
+        noise_abs = np.maximum(rounding, RATIONAL_ROUNDING * den)
+        error_abs = np.abs(Cb @ diff)
+        above = np.where(error_abs > noise_abs, error_abs, 0.0)
+        return state_error, error_abs / den, noise_abs / den, above, rounding
 
     states = np.empty((events.size, n))
     states[0] = x
@@ -390,7 +416,16 @@ def _rational(
     # The trust is keyed to the step length itself: a level is relative to its interval, and a
     # micro-interval (a PWL corner within rounding of an output time) that passed at level 0
     # says nothing about the full interval after it.
-    checked_h, unchecked, last = math.nan, 0, (math.inf, math.inf, 0.0, 0.0)
+    no_outputs = np.zeros(model.noutputs)
+    checked_h, unchecked = math.nan, 0
+    last: tuple[float, float, np.ndarray, np.ndarray, str, tuple[float, np.ndarray]] = (
+        math.inf,
+        math.inf,
+        no_outputs,
+        no_outputs,
+        "",
+        (0.0, no_outputs),
+    )
     stats["checks"] = 0
     for k in range(1, events.size):
         length = events[k] - events[k - 1]
@@ -408,7 +443,7 @@ def _rational(
             u_here = u0 + slope * (done * length)
             damped = stepper(h, False)(x, u_here, slope)
             scale = max(scale, float(np.max(np.abs(damped))))
-            if abs_cb.size:
+            if has_outputs:
                 y_peak = np.maximum(y_peak, np.abs(Cb @ damped + model.D @ (u_here + slope * h)))
             tol = rtol * h / horizon if horizon > 0 else rtol
             trusted = not growing and h == checked_h and unchecked < 16 and last[0] < 0.1
@@ -416,24 +451,34 @@ def _rational(
                 unchecked += 1
             else:
                 kept = stepper(h, True)(x, u_here, slope)
-                state_error, errors, noise = measure(damped - kept, damped)
+                state_error, errors, noise, above, rounding = measure(damped - kept, damped, h)
                 # Passed when the state's difference is within rtol of the largest state and every
                 # output's within its share of rtol or at its rounding level; an output's
                 # difference above its rounding level counts towards the estimate.
-                above = errors[errors > noise]
                 state_tol = max(rtol, RATIONAL_ROUNDING)
+                output_ratio = errors / np.maximum(tol, noise)
+                need = (state_error / RATIONAL_ROUNDING, errors / np.maximum(noise, 1e-300))
+                worst = ""
+                if state_error / state_tol >= float(np.max(output_ratio, initial=0.0)):
+                    worst = f"the states' difference ({state_error:.2g} of the largest state)"
+                elif output_ratio.size:
+                    j = int(np.argmax(output_ratio))
+                    worst = f"{model.outputs[j]}'s difference ({errors[j]:.2g} of its scale)"
                 last = (
-                    max(state_error / state_tol, float(np.max(errors / np.maximum(tol, noise), initial=0))),
+                    max(state_error / state_tol, float(np.max(output_ratio, initial=0))),
                     max(
                         state_error / (state_tol * 1e-3),
                         float(np.max(errors / np.maximum(tol * 1e-3, noise * 0.25), initial=0)),
                     ),
-                    float(above.max()) if above.size else 0.0,
-                    float(noise.max(initial=0)),
+                    above,
+                    rounding,
+                    worst,
+                    need,
                 )
                 checked_h, unchecked = h, 0
                 stats["checks"] += 1
-            ratio, comfort, contribution, noise_here = last
+            ratio, comfort, contribution, rounding_here, worst, (state_need, output_need) = last
+            at = events[k - 1] + done * length
             if growing and stats["steps"] + stats["rejected"] > step_budget:
                 return SimResult(
                     times,
@@ -442,17 +487,43 @@ def _rational(
                     f"rtol={rtol:g}",
                     time.perf_counter() - start,
                     "failed",
-                    f"stopped after {step_budget:,} steps at t = {events[k - 1] + done * length:.6g} s "
+                    f"stopped after {step_budget:,} steps at t = {at:.6g} s "
                     f"(step {h:.3g} s)" + ": the model has a growing mode, try --method exact",
                     stats,
                 )
-            if ratio > 1.0 and level < depth_limit:
+            # At h·‖A‖ ≤ EXACT_STEP both approximants are e^{hA} far below rounding (the [11/12]
+            # error is ~1e-30·‖hA‖²⁴): a difference left there is rounding. Halving stops there.
+            at_limit = level >= depth_limit or h * norm_a <= EXACT_STEP
+            if ratio > 1.0 and at_limit:
+                output_excess = float(np.max(output_need, initial=0.0))
+                if max(state_need, output_excess) > ROUNDING_GAIN_LIMIT:
+                    return SimResult(
+                        times,
+                        np.full((times.size, model.C.shape[0]), np.nan),
+                        "rational",
+                        f"rtol={rtol:g}",
+                        time.perf_counter() - start,
+                        "failed",
+                        f"stopped at t = {at:.6g} s: at a step of {h:.3g} s (h·‖A‖ = {h * norm_a:.2g}, where "
+                        f"both approximants are exact to rounding) the step check still fails on {worst}, "
+                        f"{max(state_need, output_excess):.2g} times the rounding level",
+                        stats,
+                    )
+                # Rounding: the step is taken, its difference counted as this model's rounding
+                # level (random walk in the estimate), and the next step tried twice as long.
+                abs_noise = np.maximum(abs_noise, contribution + rounding_here)
+                contribution = no_outputs
+                ratio, comfort = 0.0, 0.0
+                stats["rounding_steps"] = stats.get("rounding_steps", 0) + 1
+                if math.isnan(stats.get("rounding_from", math.nan)):
+                    stats["rounding_from"] = at
+            if ratio > 1.0:
                 level += 1
                 stats["rejected"] += 1
                 continue
             x = damped
-            estimate += contribution
-            noise_level = max(noise_level, noise_here)
+            abs_estimate += contribution
+            abs_noise = np.maximum(abs_noise, rounding_here)
             done += 1.0 / 2**level
             stats["steps"] += 1
             # Coarsen when comfortably accurate (or at the rounding level, where the difference
@@ -475,8 +546,17 @@ def _rational(
         y = y + signals.derivative(times) @ model.D1.T
     if states_out is not None:
         states_out.append(xs)
-    # Truncation errors add up; rounding errors, independent from step to step, like a random walk.
-    estimate += noise_level * math.sqrt(stats["steps"])
+    # Relative to each output's own peak over the run (the check used a floor while it was still
+    # small): truncation errors add up; rounding errors, independent from step to step, like a
+    # random walk.
+    positive = y_peak > 0
+    peak = np.where(positive, y_peak, 1.0)
+    noise_rel = np.where(positive, np.maximum(abs_noise / peak, RATIONAL_ROUNDING), RATIONAL_ROUNDING)
+    noise_rel = np.where(positive | (abs_noise == 0), noise_rel, np.inf)
+    per_output = np.where(positive, abs_estimate / peak, np.where(abs_estimate > 0, np.inf, 0.0))
+    per_output = per_output + noise_rel * math.sqrt(stats["steps"])
+    estimate = float(np.max(per_output, initial=RATIONAL_ROUNDING * math.sqrt(stats["steps"])))
+    noise_level = float(np.max(noise_rel, initial=RATIONAL_ROUNDING))
     stats["error_estimate"] = estimate
     result = _finish(times, y, "rational", f"rtol={rtol:g}", start, stats)
     if result.ok and estimate > rtol:
@@ -487,6 +567,56 @@ def _rational(
         )
         return replace(result, status="unverified", message=message)
     return result
+
+
+#: The step check judges an output against at least this fraction of its eventual scale (its DC
+#: value at the input's levels). An output reaching at
+#: least this fraction of that scale over the run has its error sum within rtol of its peak.
+OUTPUT_SCALE_FLOOR = 1e-3
+#: Steps with h·‖A‖₁ at or below this are exact far below rounding: the step is not halved below
+#: it; a check failing there is rounding, counted as such, unless it exceeds ROUNDING_GAIN_LIMIT
+#: times the assumed rounding level, which stops the run with a message.
+EXACT_STEP = 0.5
+ROUNDING_GAIN_LIMIT = 1e4
+#: Largest condition number (1-norm estimate) of A for which its DC solution sets output scales.
+DC_CONDITION_LIMIT = 1e12
+#: Most inputs for which the DC gain is formed (one sparse solve per input).
+DC_INPUT_LIMIT = 256
+
+
+def _dc_output_scale(
+    A: sp.csc_matrix,
+    B: sp.csr_array,
+    Cb: sp.csr_array,
+    D: NDArray[np.float64],
+    u_events: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Each output's largest |DC value| over the input's values at the events (0 where unknown).
+
+    The DC value of y for a constant input u is (D − C A⁻¹ B) u: one real sparse LU of A. A
+    singular or ill-conditioned A (a floating capacitor: an eigenvalue 0), too many inputs, or a
+    DC value within rounding of zero (cancelling terms) leave the scale unknown (0).
+    """
+    p = Cb.shape[0]
+    n, m = A.shape[0], B.shape[1]
+    if n == 0 or p == 0 or m == 0 or m > DC_INPUT_LIMIT:
+        return np.zeros(p)
+    try:
+        lu = spla.splu(sp.csc_matrix(A))
+    except RuntimeError:
+        return np.zeros(p)
+    inverse_norm = spla.onenormest(spla.LinearOperator(A.shape, lu.solve, rmatvec=lambda v: lu.solve(v, "T")))
+    if not inverse_norm * float(spla.norm(A, 1)) < DC_CONDITION_LIMIT:
+        return np.zeros(p)
+    x_dc = -lu.solve(np.asarray(sp.csr_array(B).toarray(), dtype=float))
+    gain = Cb @ x_dc + D  # (outputs, inputs)
+    size = abs(Cb) @ np.abs(x_dc) + np.abs(D)
+    if not np.all(np.isfinite(gain)):
+        return np.zeros(p)
+    values = np.abs(u_events @ gain.T)  # (events, outputs)
+    magnitudes = np.abs(u_events) @ size.T
+    values = np.where(values > 1e-8 * magnitudes, values, 0.0)
+    return np.max(values, axis=0, initial=0.0)
 
 
 #: Below this (relative to the largest state), the two Padé steps differ by rounding.
