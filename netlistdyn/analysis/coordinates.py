@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from netlistdyn.base.errors import UsageError
 from netlistdyn.base.values import parse_number
 from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
-from netlistdyn.circuit.probes import default_probes, parse_probe
+from netlistdyn.circuit.probes import default_probes, parse_probe, parse_probes
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: Relative size below which an entry of a row counts as zero (rows come from
@@ -128,7 +128,7 @@ def compile_with(
     """
     from netlistdyn.formulation.compile import compile_netlist
 
-    probes = [parse_probe(o, netlist) for o in outputs] if outputs else default_probes(netlist)
+    probes = parse_probes(outputs, netlist) if outputs else default_probes(netlist)
     shown = tuple(dict.fromkeys(p.name for p in probes))
     wanted = list(shown)
     for v in variables:

@@ -7,6 +7,7 @@ element the netlist lacks is a usage error, reported before any work.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from netlistdyn.base.errors import UsageError
@@ -45,7 +46,13 @@ def _canonical(node: str) -> str:
     return GROUND if low in ("0", "gnd") else low
 
 
-def parse_probe(text: str, netlist: Netlist) -> Probe:
+def parse_probes(texts: Sequence[str], netlist: Netlist) -> list[Probe]:
+    """:func:`parse_probe` of each text, the netlist's node set formed once (not once per text)."""
+    known = frozenset(netlist.nodes) | {GROUND}
+    return [parse_probe(text, netlist, known) for text in texts]
+
+
+def parse_probe(text: str, netlist: Netlist, known: frozenset[str] | None = None) -> Probe:
     """Parse one ``--output`` value against a netlist.
 
     Parameters
@@ -54,6 +61,8 @@ def parse_probe(text: str, netlist: Netlist) -> Probe:
         ``v(n)``, ``v(a,b)`` or ``i(elem)``.
     netlist : Netlist
         For checking that the nodes and elements exist.
+    known : frozenset of str, optional
+        The netlist's nodes and ground, when the caller has them (see :func:`parse_probes`).
 
     Returns
     -------
@@ -69,7 +78,8 @@ def parse_probe(text: str, netlist: Netlist) -> Probe:
         raise UsageError(f"--output {text!r}: expected v(node), v(node1,node2) or i(element)")
     func, first, second = match.group(1).lower(), match.group(2), match.group(3)
     if func in ("v", "x"):
-        known = set(netlist.nodes) | {GROUND}
+        if known is None:
+            known = frozenset(netlist.nodes) | {GROUND}
         a, b = _canonical(first), _canonical(second) if second else GROUND
         for node in (a, b):
             if node not in known:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 from netlistdyn.base.errors import NetlistError, SingularCircuitError, TopologyError
 from netlistdyn.circuit.netlist import Netlist
-from netlistdyn.circuit.probes import Probe, default_probes, parse_probe
+from netlistdyn.circuit.probes import Probe, default_probes, parse_probes
 from netlistdyn.devices.registry import REGISTRY, Registry
 from netlistdyn.formulation.algebra import NotSupportedError
 from netlistdyn.formulation.formulate import (
@@ -81,9 +81,7 @@ def formulate(
     """
     if netlist.is_nonlinear:
         netlist, outputs = linearised(netlist, outputs)
-    probes = (
-        tuple(parse_probe(text, netlist) for text in outputs) if outputs else tuple(default_probes(netlist))
-    )
+    probes = tuple(parse_probes(outputs, netlist)) if outputs else tuple(default_probes(netlist))
     check_value_range(netlist)
     failure: NetlistError | None = None
     topology: TopologyError | None = None

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
-from netlistdyn.circuit.probes import Probe, default_probes, parse_probe
+from netlistdyn.circuit.probes import Probe, default_probes, parse_probes
 from netlistdyn.circuit.waveforms import Dc
 from netlistdyn.devices.registry import REGISTRY
 from netlistdyn.devices.traits import Mna, Triplets
@@ -147,7 +147,7 @@ def assemble(netlist: Netlist, outputs: Sequence[str] | None = None, reduce: boo
     A = _matrix(mna.A, (n, n))
     B = _matrix(mna.B, (n, len(sources)))
     E.eliminate_zeros()
-    probes = [parse_probe(text, netlist) for text in outputs] if outputs else default_probes(netlist)
+    probes = parse_probes(outputs, netlist) if outputs else default_probes(netlist)
     C, D = _output_rows(probes, netlist, mna, n)
     if reduce:
         needed = {p.element for p in probes if p.kind == "i"}
