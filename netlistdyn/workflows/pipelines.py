@@ -217,8 +217,9 @@ class Simulation:
         Stop time, output step (s) and where they came from.
     stats : dict
         Method-specific counts.
-    eigen : EigenAnalysis
-        The eigenvalues that chose the horizon.
+    eigen : EigenAnalysis or None
+        The eigenvalues that chose the horizon or sized the growth warnings; None when neither
+        needed them (a ``.tran`` or ``tstop`` and a passive model).
     start : str
         Where the transient started (:func:`netlistdyn.simulation.initial.transient_start`): the DC
         operating point, the ``UIC`` initial conditions, or the given initial state.
@@ -356,8 +357,15 @@ def simulation_pipeline(
         raise UsageError("--step is the fixed step of --method euler")
     # The eigenvalues here place the horizon and size the growth warnings: A's own error
     # estimates serve, and the check on the circuit equations (extended precision; 15 CPU s of a
-    # 0.2 s run on a 100-section ladder) is left to analyze, which reports the error bars.
-    eig = analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+    # 0.2 s run on a 100-section ladder) is left to analyze, which reports the error bars. They
+    # are computed only when needed (ARPACK took 4 of the 9 CPU s of a 1000-section ladder): for a
+    # horizon that neither the arguments nor a .tran give, or a model not known to be passive.
+    needed = (tstop is None and netlist.tran is None) or not model.info.passive
+    eig = (
+        analyze_eigenvalues(model.A_sparse, "auto" if model.nstates <= 1000 else "extreme")
+        if needed
+        else None
+    )
     said: list[Any] = []
 
     def say(note: Any) -> None:
@@ -486,14 +494,14 @@ def validation_pipeline(
     from dataclasses import replace
 
     from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.circuit.probes import default_probes, parse_probe
+    from netlistdyn.circuit.probes import default_probes, parse_probes
     from netlistdyn.formulation.compile import compile_netlist
     from netlistdyn.simulation.foh import choose_horizon
     from netlistdyn.spice.validate import compare, compare_poles, spice_settings_for
 
     loaded = load_source(source)
     parsed = loaded.parse(params)
-    probes = [parse_probe(o, parsed) for o in outputs] if outputs else default_probes(parsed)
+    probes = parse_probes(outputs, parsed) if outputs else default_probes(parsed)
     model_net = loaded.parse({**to_numbers(params), **to_numbers(model_params)}) if model_params else parsed
     model = compile_netlist(model_net, [p.name for p in probes])
     for warning in model.info.warnings:
