@@ -925,7 +925,8 @@ def simulate(
         from netlistdyn.devices.units import signal_units
         from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json
         from netlistdyn.simulation.foh import input_signals
-        from netlistdyn.workflows.large import descriptor_wanted
+        from netlistdyn.simulation.integrators import EXACT_LIMIT
+        from netlistdyn.workflows.large import descriptor_wanted, simulate_descriptor_wanted
         from netlistdyn.workflows.pipelines import simulation_pipeline
 
         check_outputs((netlist,), csv=csv_path, plot=plot, animate=animate, out=out)
@@ -936,7 +937,13 @@ def simulate(
             from netlistdyn.workflows.superpose import check_linear
 
             check_linear(parsed)
-        if descriptor_wanted(parsed, method):  # large circuit: sparse descriptor form
+        # Large, or (auto) stiff relative to the output step when no option needs the explicit
+        # model (--ic names its states, --coordinates and --animate its variables): descriptor form.
+        plain = split is None and not ics and not coordinates and not animate
+        if descriptor_wanted(parsed, method) or (
+            plain
+            and simulate_descriptor_wanted(parsed, method, list(outputs) or None, tstop, tstep, EXACT_LIMIT)
+        ):
             refused = [f for f, on in (("--coordinates", coordinates), ("--animate", animate)) if on]
             if refused:
                 raise UsageError(f"{refused[0]} is not available in the sparse descriptor form")

@@ -16,8 +16,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from netlistdyn.base.errors import UsageError
+from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.circuit.netlist import Kind, Netlist
+from netlistdyn.circuit.sources import SourceValues, source_waveform
 from netlistdyn.devices.registry import REGISTRY
 from netlistdyn.formulation.descriptor import DescriptorSystem, assemble, supports
 
@@ -39,6 +40,58 @@ def descriptor_wanted(netlist: Netlist, method: str) -> bool:
     if method == "descriptor":
         return True
     return method == "auto" and supports(netlist) and unknown_count(netlist) > DESCRIPTOR_UNKNOWNS
+
+
+#: ``simulate --method auto`` takes the descriptor (CF) stepping when the circuit's fastest rate,
+#: estimated as below, times the output step exceeds this: the CF approximant is accurate on the
+#: whole negative real axis, so it takes one step per output interval whatever the stiffness,
+#: where ``rational`` (Padé) resolves the fast modes the input's corners excite (30x30 RC grid,
+#: rate·step ≈ 2e4: CF 2.2 s, rational 29 s CPU). An RLC ladder's rows have no such rate (its
+#: modes are LC oscillations, which CF does not resolve): it stays with ``rational``.
+STIFF_STEP_RATIO = 100.0
+
+
+def stiffness_ratio(system: DescriptorSystem, tstep: float) -> float:
+    """A cheap estimate of max |λ| · ``tstep`` of the pencil (A, E): max over dynamic rows of
+    |A_ii| / E_ii (for an RC network, symmetric, the Rayleigh quotient of a unit vector: a lower
+    bound on the largest rate)."""
+    e = system.E.diagonal()
+    a = np.abs(system.A.diagonal())
+    dynamic = e > 0
+    if not np.any(dynamic):
+        return 0.0
+    return float(np.max(a[dynamic] / e[dynamic])) * tstep
+
+
+def simulate_descriptor_wanted(
+    netlist: Netlist,
+    method: str,
+    outputs: Sequence[str] | None,
+    tstop: float | None,
+    tstep: float | None,
+    states_limit: int,
+) -> bool:
+    """Whether ``simulate`` uses the descriptor form: as :func:`descriptor_wanted`, and for
+    ``auto`` also when the circuit is stiff relative to its output step (:data:`STIFF_STEP_RATIO`,
+    :func:`stiffness_ratio`), has more than ``states_limit`` reactive elements (below, the dense
+    ``exact`` method wins), a horizon (``tstop`` or a ``.tran``), piecewise-linear sources and
+    outputs the descriptor form gives."""
+    if descriptor_wanted(netlist, method):
+        return True
+    if method != "auto" or not supports(netlist) or (tstop is None and netlist.tran is None):
+        return False
+    reactive = sum(1 for e in netlist.elements if e.kind in (Kind.CAPACITOR, Kind.INDUCTOR))
+    if reactive <= states_limit:
+        return False
+    horizon = descriptor_horizon(netlist, tstop, tstep)
+    waves = [source_waveform(e).resolved(horizon.tstep, horizon.tstop) for e in netlist.sources]
+    if not SourceValues(waves).piecewise_linear():
+        return False
+    try:
+        system = assemble(netlist, outputs)
+    except (UsageError, NetlistError):
+        return False
+    return stiffness_ratio(system, horizon.tstep) > STIFF_STEP_RATIO
 
 
 def _initial_unknowns(system: DescriptorSystem, ics: Sequence[str]) -> np.ndarray | None:
