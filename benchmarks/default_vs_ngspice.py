@@ -1,20 +1,21 @@
-"""``simulate`` with its defaults against ``ngspice -b`` with its defaults, whole processes, in one run.
+"""``simulate``'s defaults against ``ngspice -b``'s: whole processes, CPU seconds, in one run.
 
     python benchmarks/default_vs_ngspice.py [--cases ladder100,ladder1000,rc30,rlc30]
                                             [--cpu-limit 300] [--extra "--rtol 1e-6"]
 
-Each case is a netlist of ``benchmarks/ladder.py`` (an RLC ladder, unit step, its own ``.tran``)
-or ``benchmarks/powergrid.py`` (an RC or RLC power grid, 10 ns at 10 ps, PWL loads). Both programs
-are child processes with one BLAS thread; their CPU seconds are their own (user + system, from
+Each case is a netlist of ``benchmarks/ladder.py`` (an RLC ladder, unit step, its own ``.tran``) or
+``benchmarks/powergrid.py`` (an RC or RLC power grid, 10 ns at 10 ps, PWL loads). Both programs are
+child processes with one BLAS thread; their CPU seconds are their own (user + system, from
 ``wait4``: a loaded machine does not stretch them), limited to ``--cpu-limit``. ``simulate`` runs
-with no ``--method`` and no ``--rtol`` (``--extra`` adds options) and writes the probed outputs as
-CSV; ngspice runs the same deck with a ``.control`` block that writes them (``wrdata``), and its
-time points are interpolated linearly onto the output grid. The error of each is the largest
-deviation over the probes and the output times, relative to each probe's peak, against a
-reference independent of netlistdyn's steppers: ``bench_grid.py``'s ``EXACT``, scipy's dense
-``expm`` of Van Loan's augmented matrix on the descriptor model with its algebraic unknowns
-eliminated, one matrix per output step (exact for inputs linear between the output times; the
-ladders start at rest, the grids at their DC operating point).
+with no ``--method`` and no ``--rtol`` (``--extra`` adds options) and writes its default outputs
+(every node voltage, which its step check sees) as CSV, of which the probes are scored; ngspice
+runs the same deck with a ``.control`` block that writes them (``wrdata``), and its time points are
+interpolated linearly onto the output grid. The error of each is the largest deviation over the
+probes and the output times, relative to each probe's peak, against a reference independent of
+netlistdyn's steppers: ``bench_grid.py``'s ``EXACT``, scipy's dense ``expm`` of Van Loan's
+augmented matrix on the descriptor model with its algebraic unknowns eliminated, one matrix per
+output step (exact for inputs linear between the output times; the ladders start at rest, the grids
+at their DC operating point).
 """
 
 from __future__ import annotations
@@ -62,14 +63,17 @@ def ours(
 ) -> tuple:
     """``simulate`` of the netlistdyn in ``package`` on the file: (outputs or None, CPU s, status)."""
     csv = work / f"{key}.csv"
-    args = [sys.executable, "-m", "netlistdyn", "simulate", "-q", str(path), "--csv", str(csv)]
-    args += [f"--output=v({p})" for p in probes] + extra
+    # simulate's default outputs (every node voltage: the step check sees them all), then the probes.
+    args = [sys.executable, "-m", "netlistdyn", "simulate", "-q", str(path), "--csv", str(csv), *extra]
     run = run_program(args, None, cpu_limit=limit, env={**ENV, "PYTHONPATH": package})
     if run.how != "ok" or not csv.exists():
         return None, run.cpu, f"{run.how} ({run.stderr.strip()[-200:]})"
-    table = np.loadtxt(csv, delimiter=",", skiprows=1)
+    with csv.open() as handle:
+        header = [name.strip().split(" ")[0] for name in handle.readline().split(",")]
+    columns = [header.index(f"v({p})") for p in probes]
+    table = np.loadtxt(csv, delimiter=",", skiprows=1, usecols=columns, ndmin=2)
     status = "ok" if run.returncode == 0 else f"exit {run.returncode}: {run.stderr.strip()[-160:]}"
-    return table[:, 1:], run.cpu, status
+    return table, run.cpu, status
 
 
 def ngspice(text: str, probes: list[str], times: np.ndarray, limit: float, work: Path, key: str) -> tuple:
