@@ -67,6 +67,13 @@ def run_in_child_status(
     return result, how
 
 
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and of its children waited for so far."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 @dataclass(frozen=True, slots=True)
 class ProgramRun:
     """How a program run by :func:`run_program` ended.

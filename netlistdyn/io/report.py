@@ -411,7 +411,7 @@ BENCH_COLUMNS = f"  {'method':<14} {'setting':<44} {'error/peak':>11} {'wall s':
 def bench_text_head(report: Any) -> str:
     """The ``bench`` report's head: the case, the reference and its accuracy, the column titles."""
     ref = report.reference
-    budget = f"; budget {report.budget:g} s" if math.isfinite(report.budget) else ""
+    budget = f"; budget {report.budget:g} CPU s" if math.isfinite(report.budget) else ""
     took = f" ({ref.seconds:.3g} s)" if math.isfinite(ref.seconds) else ""
     return (
         "\n".join(
@@ -445,11 +445,11 @@ def bench_text_row(row: Any) -> str:
 def bench_text_tail(report: Any) -> str:
     """The ``bench`` report's last line: time taken against the budget, rows stopped or skipped, load."""
     counts = {s: sum(r.status == s for r in report.rows) for s in ("stopped", "skipped")}
-    budget = f" of the {report.budget:g} s budget" if math.isfinite(report.budget) else ""
+    budget = f" of the {report.budget:g} CPU s budget" if math.isfinite(report.budget) else ""
     load = _load_average()
     where = f"; load average {load:.2g} on {os.cpu_count()} CPUs" if load is not None else ""
     return (
-        f"done in {report.elapsed:.3g} s{budget}; {len(report.rows)} rows, {counts['stopped']} stopped, "
+        f"done in {report.elapsed:.3g} CPU s{budget}; {len(report.rows)} rows, {counts['stopped']} stopped, "
         f"{counts['skipped']} skipped{where}\n"
     )
 

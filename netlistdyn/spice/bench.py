@@ -17,11 +17,15 @@ uniform samples of the horizon) against a reference solution:
   the grid (no interpolation on either side); ngspice reports no point at
   t = 0, so every run is scored from the first grid step on; its CPU and
   wall time are those of the ngspice process (resource usage);
-* every run happens in a child process stopped at its share of the budget:
-  the time left divided among the rows still to run (weighted, see
-  :data:`MAIN_WEIGHT`), so the whole bench ends within the budget; a row
-  that is stopped is reported as such, and tighter settings of the same
-  family are then skipped (they could not finish either);
+* the budget is CPU seconds: the bench's own and its rows' processes'
+  (a loaded machine stretches wall time, not these); every run happens in
+  a child process stopped when its own CPU time reaches its share of the
+  budget: the CPU time left divided among the rows still to run (weighted,
+  see :data:`MAIN_WEIGHT`), so the whole bench ends within the budget; a
+  row that is stopped says that its CPU time ran out (or, for a run that
+  waits without computing, that the wall-time backstop of
+  :data:`WALL_FACTOR` times its share did), and tighter settings of the
+  same family are then skipped (they could not finish either);
 * rows run in order of interest (our default method, ngspice at its
   defaults, ngspice at tight settings, then the rest), each repeated up to
   ``repeats`` times while its share allows (median reported), and each is
@@ -36,6 +40,7 @@ from __future__ import annotations
 
 import math
 import resource
+import signal
 import statistics
 import time
 from collections.abc import Callable
@@ -47,7 +52,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from netlistdyn.base.errors import UsageError
-from netlistdyn.base.processes import run_in_child_status
+from netlistdyn.base.processes import cpu_seconds, run_in_child_status
 from netlistdyn.circuit.netlist import Netlist
 from netlistdyn.circuit.probes import Probe
 from netlistdyn.simulation import integrators
@@ -70,14 +75,17 @@ LADDERS: dict[str, tuple[float, ...]] = {
 
 #: Most grid intervals ``--points`` accepts (every method and ngspice is sampled on the grid).
 MAX_POINTS = 1_000_000
-#: Default time budget of a whole bench (s of wall time).
+#: Default budget of a whole bench (CPU seconds of the bench and its rows' processes).
 DEFAULT_BUDGET = 120.0
+#: A run is also stopped after this many times its CPU share (plus WALL_SLACK) of wall time: a
+#: backstop for a run that waits instead of computing.
+WALL_FACTOR, WALL_SLACK = 20.0, 10.0
 #: Fraction of the budget the reference may take.
 REFERENCE_SHARE = 0.4
 #: Weight of the main rows (our default method, ngspice at its defaults and at tight settings)
 #: in the division of the time left; the other rows weigh 1.
 MAIN_WEIGHT = 4.0
-#: Wall time kept back for writing the report (s, and fraction of the budget).
+#: CPU time kept back for writing the report (s, and fraction of the budget).
 RESERVE = (2.0, 0.03)
 #: A run given less time than this is skipped, not started (s).
 MIN_RUN = 0.05
@@ -90,8 +98,9 @@ class BenchRow:
     ``seconds`` is wall time (ours: the integration inside its child; ngspice:
     the whole ngspice process), ``cpu`` the child's CPU time from its resource
     usage; ``status`` is "ok", "unverified", "stopped" (its share of the
-    budget ran out), "skipped" (not started: no budget, or a looser setting of
-    the same family was stopped), "refused", "failed" or "diverged".
+    budget, CPU seconds of its own process, ran out), "skipped" (not started:
+    no budget, or a looser setting of the same family was stopped),
+    "refused", "failed" or "diverged".
     """
 
     method: str
@@ -141,8 +150,8 @@ class _Run:
     """One timed run in a child process.
 
     ``outputs`` on the grid (None unless it produced numbers), ``seconds`` its
-    reported wall time, ``cpu`` its CPU time, ``spent`` the wall time it cost
-    the bench (process start included).
+    reported wall time, ``cpu`` its CPU time, ``spent`` the CPU time it cost
+    the budget (its process's, start included).
     """
 
     outputs: np.ndarray | None
@@ -155,37 +164,63 @@ class _Run:
 
 
 class Clock:
-    """The bench's budget: wall time since ``started``, and what is left of it.
+    """The bench's budget in CPU seconds (its own and its rows' processes'), and what is left.
 
     Parameters
     ----------
     budget : float
-        Seconds of wall time for the whole bench.
+        CPU seconds for the whole bench.
     started : float, optional
-        ``time.perf_counter()`` at the start (default: now), so that loading
-        and compiling the netlist count too.
+        :func:`netlistdyn.base.processes.cpu_seconds` at the start (default:
+        now), so that loading and compiling the netlist count too.
     """
 
     def __init__(self, budget: float, started: float | None = None) -> None:
         self.budget = budget
-        self.started = time.perf_counter() if started is None else started
+        self.started = cpu_seconds() if started is None else started
         reserve = min(RESERVE[0] + RESERVE[1] * budget, 0.25 * budget) if math.isfinite(budget) else 0.0
         self.deadline = self.started + budget - reserve
 
     def elapsed(self) -> float:
-        """Seconds since the start."""
-        return time.perf_counter() - self.started
+        """CPU seconds since the start."""
+        return cpu_seconds() - self.started
 
     def left(self) -> float:
-        """Seconds left for runs (the report's reserve excluded)."""
-        return self.deadline - time.perf_counter()
+        """CPU seconds left for runs (the report's reserve excluded)."""
+        return self.deadline - cpu_seconds()
+
+
+class _CpuOut(Exception):
+    """The child's CPU time ran out."""
+
+
+def _cpu_out(signum: int, frame: object) -> None:
+    raise _CpuOut
 
 
 def _our_child(
-    conn: Any, model: StateSpaceModel, signals: InputSignals, times: np.ndarray, method: str, rtol: float
+    conn: Any,
+    model: StateSpaceModel,
+    signals: InputSignals,
+    times: np.ndarray,
+    method: str,
+    rtol: float,
+    cpu_limit: float,
 ) -> None:
-    result = integrators.run(model, signals, times, method, rtol=rtol if rtol else 1e-10)
-    conn.send((result.outputs, result.seconds, result.status, result.message, result.setting))
+    """Run in the child: stopped by its own CPU time (a profiling timer, the kernel's RLIMIT_CPU a
+    second later as a backstop for a long call in C), it sends ``None`` then."""
+    used = time.process_time()
+    signal.signal(signal.SIGPROF, _cpu_out)
+    signal.setitimer(signal.ITIMER_PROF, max(cpu_limit, 1e-3))
+    backstop = math.ceil(used + cpu_limit) + 1
+    resource.setrlimit(resource.RLIMIT_CPU, (backstop, backstop + 5))
+    try:
+        result = integrators.run(model, signals, times, method, rtol=rtol if rtol else 1e-10)
+    except _CpuOut:
+        conn.send(None)
+    else:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        conn.send((result.outputs, result.seconds, result.status, result.message, result.setting))
     conn.close()
 
 
@@ -194,25 +229,29 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _stopped(limit: float) -> str:
-    return f"> {limit:.3g} s, stopped"
+def _stopped(limit: float, cpu: float) -> str:
+    if cpu >= 0.9 * limit:
+        return f"its CPU time ran out: {cpu:.3g} s of its own CPU (share {limit:.3g} s), stopped"
+    wall = WALL_FACTOR * limit + WALL_SLACK
+    return f"its wall time ran out: {wall:.3g} s with {cpu:.3g} s of CPU (share {limit:.3g} s), stopped"
 
 
 def _run_ours(
     model: StateSpaceModel, signals: InputSignals, times: np.ndarray, method: str, rtol: float, limit: float
 ) -> _Run:
-    """Our ``method`` at ``rtol`` (0: none) in a child stopped after ``limit`` s."""
+    """Our ``method`` at ``rtol`` (0: none) in a child stopped after ``limit`` s of its own CPU."""
     setting = f"rtol={rtol:g}" if rtol else ""
     cpu0, wall0 = _children_cpu(), time.perf_counter()
-    result, how = run_in_child_status(_our_child, (model, signals, times, method, rtol), limit)
-    cpu, spent = _children_cpu() - cpu0, time.perf_counter() - wall0
-    if how == "timeout":
-        return _Run(None, limit, cpu, "stopped", setting, _stopped(limit), spent)
+    args = (model, signals, times, method, rtol, limit)
+    result, how = run_in_child_status(_our_child, args, WALL_FACTOR * limit + WALL_SLACK)
+    cpu, wall = _children_cpu() - cpu0, time.perf_counter() - wall0
+    if how == "timeout" or (result is None and cpu >= 0.9 * limit):
+        return _Run(None, limit, cpu, "stopped", setting, _stopped(limit, cpu), cpu)
     if result is None:
-        return _Run(None, spent, cpu, "failed", setting, "its process died (out of memory?)", spent)
+        return _Run(None, wall, cpu, "failed", setting, "its process died (out of memory?)", cpu)
     outputs, seconds, status, message, setting = result
     keep = outputs if status in ("ok", "unverified") else None
-    return _Run(keep, seconds, cpu, status, setting, message, spent)
+    return _Run(keep, seconds, cpu, status, setting, message, cpu)
 
 
 def _spice_setting(settings: SpiceSettings) -> str:
@@ -223,13 +262,13 @@ def _spice_setting(settings: SpiceSettings) -> str:
 def _run_spice(
     netlist: Netlist, probes: list[Probe], settings: SpiceSettings, times: np.ndarray, limit: float
 ) -> _Run:
-    """Batch ngspice on the grid, stopped after ``limit`` s; outputs at ``times[1:]`` (row 0 unused)."""
+    """Batch ngspice on the grid, stopped after ``limit`` s of its own CPU; outputs at ``times[1:]``
+    (row 0 unused)."""
     setting = _spice_setting(settings)
-    wall0 = time.perf_counter()
-    run = run_batch(netlist, probes, settings, limit)
-    spent = time.perf_counter() - wall0
+    run = run_batch(netlist, probes, settings, WALL_FACTOR * limit + WALL_SLACK, limit)
+    spent = run.cpu
     if run.status == "timeout":
-        return _Run(None, limit, run.cpu, "stopped", setting, _stopped(limit), spent)
+        return _Run(None, limit, run.cpu, "stopped", setting, _stopped(limit, run.cpu), spent)
     if not run.ok:
         return _Run(None, run.seconds, run.cpu, run.status, setting, run.message, spent)
     picked = np.searchsorted(run.time, times[1:] - 1e-9 * times[-1])
@@ -263,7 +302,7 @@ def compute_reference(
     rtol : float
         Tolerance of the ``rational`` check run.
     limit : float, optional
-        Wall seconds for all the reference runs (None: no limit).
+        CPU seconds for all the reference runs (None: no limit).
     runs : dict, optional
         Receives every run made, keyed by (method, rtol), for reuse as rows.
     spare : float, optional
@@ -275,11 +314,11 @@ def compute_reference(
     UsageError
         When no candidate finished within ``limit``.
     """
-    start = time.perf_counter()
+    start, wall = cpu_seconds(), time.perf_counter()
     made = runs if runs is not None else {}
 
     def run(method: str, r: float) -> _Run:
-        left = math.inf if limit is None else limit - (time.perf_counter() - start)
+        left = math.inf if limit is None else limit - (cpu_seconds() - start)
         if left < MIN_RUN:
             made[(method, r)] = _Run(None, 0.0, 0.0, "skipped", "", "no time left in the reference's share")
         else:
@@ -335,7 +374,7 @@ def compute_reference(
             text += f" (the horizon ends {steady:.2g} short of steady state: no DC check)"
     if notes:
         text += " (" + "; ".join(notes) + ")"
-    return Reference(reference, label(*main), text, agreement, time.perf_counter() - start)
+    return Reference(reference, label(*main), text, agreement, time.perf_counter() - wall)
 
 
 def _steady_state_gap(
@@ -457,7 +496,7 @@ def run_bench(
     repeats : int
         Timed repetitions at most (median reported); fewer when the row's share is short.
     timeout : float
-        Seconds allowed to any one run (besides the budget).
+        CPU seconds allowed to any one run (besides the budget).
     methods : tuple of str, optional
         Our methods to run (default: all that apply to the model size).
     with_ngspice : bool
@@ -465,9 +504,9 @@ def run_bench(
     reference_rtol : float
         Tolerance of the ``rational`` run that checks the reference.
     budget : float
-        Seconds of wall time for the whole bench (``math.inf``: no limit).
+        CPU seconds for the whole bench, its rows' processes included (``math.inf``: no limit).
     started : float, optional
-        ``time.perf_counter()`` when the bench started (default: now).
+        :func:`netlistdyn.base.processes.cpu_seconds` when the bench started (default: now).
     on_reference, on_start, on_row : callable, optional
         Called with the report's head once the reference is known (no rows
         yet), with (row label, rows done, rows in all) as a row starts, and
@@ -555,7 +594,7 @@ def _run_row(
         if runs and runs[-1].outputs is None:
             break  # a failed or stopped configuration is not retried
         left = limit - spent
-        if (runs and 1.2 * runs[-1].spent > left) or left < MIN_RUN:
+        if (runs and 1.2 * runs[-1].spent > left) or left < MIN_RUN:  # CPU seconds
             break
         if config.kind == "ours":
             run = _run_ours(model, signals, times, config.method, config.arg, left)

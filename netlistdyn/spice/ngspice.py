@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
+import math
 import os
 import re
 import time
@@ -542,7 +543,11 @@ def batch_deck(netlist: Netlist, probes: Sequence[Probe], settings: SpiceSetting
 
 
 def run_batch(
-    netlist: Netlist, probes: Sequence[Probe], settings: SpiceSettings, timeout: float | None = None
+    netlist: Netlist,
+    probes: Sequence[Probe],
+    settings: SpiceSettings,
+    timeout: float | None = None,
+    cpu_limit: float | None = None,
 ) -> SpiceRun:
     """Run ngspice in batch mode (``ngspice -b``), as a user would, and read the probed waveforms.
 
@@ -558,12 +563,15 @@ def run_batch(
     settings : SpiceSettings
     timeout : float, optional
         Seconds of wall time after which ngspice is killed.
+    cpu_limit : float, optional
+        Seconds of ngspice's own CPU time (``RLIMIT_CPU``, whole seconds, at least 1) after
+        which it is stopped: a measure a loaded machine does not stretch.
 
     Returns
     -------
     SpiceRun
-        ``status`` "ok", "failed", "timeout" or "unusable"; ``seconds`` is the wall time,
-        ``cpu`` the CPU time.
+        ``status`` "ok", "failed", "timeout" (wall or CPU time ran out: the message says
+        which) or "unusable"; ``seconds`` is the wall time, ``cpu`` the CPU time.
     """
     import shutil
     import tempfile
@@ -578,7 +586,8 @@ def run_batch(
         deck = batch_deck(netlist, probes, settings, data)
         with open(os.path.join(tmp, "deck.cir"), "w", encoding="utf-8") as handle:
             handle.write(deck)
-        run = run_program([binary, "-b", "deck.cir"], timeout, cwd=tmp)
+        limit = None if cpu_limit is None else max(1.0, math.ceil(cpu_limit))
+        run = run_program([binary, "-b", "deck.cir"], timeout, cwd=tmp, cpu_limit=limit)
         table = np.zeros((0, 1))
         if run.how == "ok" and os.path.exists(data):
             with contextlib.suppress(ValueError):
@@ -586,6 +595,8 @@ def run_batch(
     fail = SpiceRun(np.zeros(0), {}, run.wall, settings, False, "", deck, "failed", run.cpu)
     if run.how == "timeout":
         return replace(fail, message=f"ngspice did not finish within {timeout:g} s", status="timeout")
+    if run.how == "cpu limit":
+        return replace(fail, message=f"ngspice's CPU time ran out ({run.cpu:.3g} s)", status="timeout")
     if run.how == "missing":
         return replace(fail, message=f"ngspice cannot be started: {run.stderr}", status="unusable")
     nodes, branches = _batch_vectors(netlist, probes)
