@@ -65,7 +65,8 @@ def ours(
     csv = work / f"{key}.csv"
     # simulate's default outputs (every node voltage: the step check sees them all), then the probes.
     args = [sys.executable, "-m", "netlistdyn", "simulate", "-q", str(path), "--csv", str(csv), *extra]
-    run = run_program(args, None, cpu_limit=limit, env={**ENV, "PYTHONPATH": package})
+    # From the work folder: python -m puts the current folder first on the path, before PYTHONPATH.
+    run = run_program(args, None, cwd=str(work), cpu_limit=limit, env={**ENV, "PYTHONPATH": package})
     if run.how != "ok" or not csv.exists():
         return None, run.cpu, f"{run.how} ({run.stderr.strip()[-200:]})"
     with csv.open() as handle:
