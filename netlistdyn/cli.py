@@ -375,6 +375,12 @@ def load_and_compile(
     from netlistdyn.formulation.compile import compile_netlist
 
     parsed = parse_netlist(netlist, parse_param_overrides(params))
+    if parsed.planar:  # a planar mechanism: the exact Jacobians at its equilibrium
+        from netlistdyn.workflows.planar import planar_linear_model
+
+        model = planar_linear_model(parsed, outputs, parse_param_overrides(at, "--at"))
+        _print_warnings(model.info.warnings)
+        return parsed, model
     if parsed.is_nonlinear:
         from netlistdyn.formulation.operating import linearised
 
@@ -405,6 +411,12 @@ def load_prepared(
 
     if parsed is None:
         parsed = parse_netlist(netlist, parse_param_overrides(params))
+    if parsed.planar:
+        from netlistdyn.workflows.planar import prepare_planar
+
+        planar = prepare_planar(parsed, list(outputs) or None, coordinates, ics, extra)
+        _print_warnings(planar.full.info.warnings)
+        return parsed, planar
     prepared = prepare(parsed, list(outputs) or None, coordinates, ics, extra)
     _print_warnings(prepared.full.info.warnings)
     return parsed, prepared
@@ -668,6 +680,13 @@ def op(
 
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         _print_warnings(parsed.warnings)
+        if parsed.planar:
+            from netlistdyn.workflows import planar
+
+            where = planar.planar_point(parsed, parse_param_overrides(at, "--at"))
+            doc = {"netlist": netlist, "operating_point": planar.point_dict(where)}
+            emit(to_json(doc) if fmt == "json" else planar.point_text(where, parsed), out)
+            return 0
         point = operating_point(parsed, parse_param_overrides(at, "--at"))
         if fmt == "json":
             emit(to_json({"netlist": netlist, "operating_point": point_dict(point, parsed)}), out)
@@ -1039,7 +1058,7 @@ def simulate(
                 f"start: {result.start}\n"
             )
             text = summary + simulation_summary(result)
-            if result.method == "euler" and result.message:  # its error against the exact solution
+            if (result.method == "euler" or parsed.planar) and result.message:  # error, energy drift
                 text += result.message + "\n"
             if prepared.change is not None:
                 from netlistdyn.analysis.coordinates import change_text

@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from netlistdyn.base.errors import SourceLocation
 from netlistdyn.circuit.waveforms import Waveform
@@ -303,6 +304,9 @@ class Netlist:
         values are on the elements.
     steps : tuple of StepSpec
         ``.step param`` sweeps (LTspice), in file order.
+    planar : tuple
+        The planar-mechanism cards (:class:`netlistdyn.devices.planar.PlanarCard`), in file
+        order; a netlist with them is compiled by :mod:`netlistdyn.formulation.planar`.
     """
 
     title: str
@@ -313,6 +317,7 @@ class Netlist:
     warnings: tuple[Diagnostic, ...] = ()
     initial_conditions: tuple[InitialCondition, ...] = ()
     steps: tuple[StepSpec, ...] = ()
+    planar: tuple[Any, ...] = ()
 
     def step_cases(self, limit: int = 100_000) -> list[dict[str, float]]:
         """The parameter cases of the ``.step param`` lines: every combination, in order.

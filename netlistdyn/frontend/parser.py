@@ -55,6 +55,7 @@ from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin,
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
 from netlistdyn.devices.registry import REGISTRY, Registry
+from netlistdyn.devices.planar import PLANAR_KEYWORDS, PlanarCard, build_planar
 
 #: Default limit on the number of elements after subcircuit expansion; raise it
 #: with ``parse_text/parse_file(..., max_elements=N)`` or the environment
@@ -1374,6 +1375,7 @@ class _Build:
     definitions: dict[str, Subcircuit]
     globals_: frozenset[str]
     elements: list[Element] = field(default_factory=list)
+    planar: list[PlanarCard] = field(default_factory=list)
 
 
 def _expand_body(
@@ -1401,6 +1403,9 @@ def _expand_body(
                 "m= (ngspice 39 replaces the element's by the instance's): not supported",
                 line.loc,
             )
+        if word in PLANAR_KEYWORDS:
+            build.planar.append(_build_planar(line, ctx, prefix))
+            continue
         built = _build_element(line, ctx)
         if prefix:
             built = [_rename(e, prefix, port_map, build.globals_) for e in built]
@@ -1733,12 +1738,36 @@ def parse_text(
                 f"{element.name}: duplicate element name (first defined at {seen[element.key]})", element.loc
             )
         seen[element.key] = element.loc
-    if not elements:
+    if not elements and not build.planar:
         raise NetlistError("the netlist has no elements", SourceLocation(path, 1))
     elements = resolve_rods(elements)
-    netlist = Netlist(title, path, tuple(elements), params, tran, tuple(warnings), tuple(ics), tuple(steps))
+    netlist = Netlist(
+        title,
+        path,
+        tuple(elements),
+        params,
+        tran,
+        tuple(warnings),
+        tuple(ics),
+        tuple(steps),
+        tuple(build.planar),
+    )
     check_netlist(netlist)  # the references every command relies on, checked once for all
     return netlist
+
+
+def _build_planar(line: Line, ctx: _Context, prefix: str) -> PlanarCard:
+    """A planar-mechanism card (:mod:`netlistdyn.devices.planar`); not inside a subcircuit."""
+    fields = _fields(line)
+    if prefix:
+        raise NetlistError(f"{fields[0].upper()}: planar cards are not allowed inside a subcircuit", line.loc)
+    return build_planar(
+        fields[0].lower(),
+        fields[1:],
+        line.loc,
+        lambda token, what: ctx.values.number(token, line.loc, what),
+        lambda tokens, what: _parse_source(list(tokens), line.loc, ctx, what)[:2],
+    )
 
 
 def _options_temperature(

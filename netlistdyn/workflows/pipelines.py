@@ -393,7 +393,11 @@ def simulation_pipeline(
             say(note)
     level = None
     how = "the given initial state"
-    if netlist.is_nonlinear:  # the model is the linearisation: integrate the circuit itself
+    if netlist.planar:  # a planar mechanism: its exact equations of motion
+        from netlistdyn.simulation.planartransient import simulate_planar
+
+        result, how = simulate_planar(netlist, model.outputs, times, method, rtol, x0, progress, step)
+    elif netlist.is_nonlinear:  # the model is the linearisation: integrate the circuit itself
         from netlistdyn.simulation.nltransient import simulate_nonlinear
 
         u0 = signals(np.array([0.0]))[0]
