@@ -363,3 +363,18 @@ def test_ic_violating_a_rod_length_names_the_rod(tmp_path: Path) -> None:
         "simulate", str(PLANAR / "double_pendulum.cir"), "--ic", "x(b1)=0.5", "--tstop", "1", "-q"
     )
     assert code == 0, out
+
+
+@pytest.mark.parametrize("name", ["dipc.cir", "double_pendulum.cir"])
+def test_chain_sums_equal_the_point_recursion(name: str) -> None:
+    """The array form (ChainSums) and the point-by-point recursion give the same M and Q."""
+    model = PlanarSystem(parse_file(str(PLANAR / name))).model
+    assert model.sums is not None
+    rng = np.random.default_rng(7)
+    n = model.n
+    for _ in range(20):
+        x = rng.uniform(-4, 4, 2 * n)
+        u = rng.uniform(-2, 2, model.ninputs)
+        M1, Q1 = model.sums.mass_forcing(x[:n], x[n:], u)
+        M2, Q2 = model.tree_mass_forcing(x[:n], x[n:], u)
+        assert relative(M1, M2) <= MATRIX_RTOL and relative(Q1, Q2) <= MATRIX_RTOL
