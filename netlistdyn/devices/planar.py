@@ -15,8 +15,8 @@ card                                   meaning
 ``LINK name a b l [hanging|upright]``  a revolute joint at point ``a`` and a massless rigid rod of
                                        length l (m) from it to the new point ``b``; coordinate
                                        ``angle(name)`` (rad), from the vertical (down along gravity
-                                       when ``hanging``, the default; up when ``upright``), positive
-                                       when ``b`` is on the +x side of ``a``
+                                       when ``hanging``, the default; up when ``upright`` or
+                                       ``upright=1``), positive when ``b`` is on the +x side of ``a``
 ``SLIDER name base point [angle=0]``   a prismatic joint: ``point`` slides on the line through
 ``       [s0=0]``                      ``base`` at ``angle`` (degrees, in ``base``'s frame); it sits
                                        at s0 + x(point) along it (m); coordinate ``x(point)``
@@ -210,6 +210,8 @@ def build_planar(
         length = value(length_text, "length")
         if not length > 0:
             raise NetlistError(f"{label}: a rod's length must be positive, got {length:g}", loc)
+        if "upright" in options:  # upright={inv}: a .param chooses the convention
+            flags.append("upright" if value(options.pop("upright"), "upright") != 0 else "hanging")
         if len(set(flags)) > 1:
             raise NetlistError(f"{label}: hanging or upright, not both", loc)
         if _point(b) == GROUND:

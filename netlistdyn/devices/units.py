@@ -63,6 +63,9 @@ def signal_units(netlist: Any, names: Sequence[str]) -> tuple[str, ...]:
     tuple of str
         One unit per name; empty where it cannot be told.
     """
+    if netlist is not None and netlist.planar:  # a planar mechanism's coordinates and points
+        planar = {"x": "m", "y": "m", "px": "m", "py": "m", "v": "m/s", "angle": "rad", "omega": "rad/s"}
+        return tuple(planar.get(name.partition("(")[0].strip().lower(), "") for name in names)
     node_kind, element_kind = _domains(netlist)
     elements = netlist.elements if netlist is not None else ()
     keyword = {e.name.lower(): (e.keyword or "").lower() for e in elements}

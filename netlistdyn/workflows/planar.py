@@ -175,10 +175,11 @@ def planar_linear_model(
     outputs: Sequence[str] | None = None,
     at: Mapping[str, float] | None = None,
     point: PlanarPoint | None = None,
+    note: bool = True,
 ) -> StateSpaceModel:
     """A = ∂f/∂x, B = ∂f/∂u at the operating point; C, D of the outputs (default: the coordinates).
 
-    The states are the mechanism's (q, q'); outputs are read as
+    The states are the mechanism's (q, q'); ``note`` adds the warning that says so. Outputs are read as
     :func:`netlistdyn.formulation.planar.output_values` reads them, differentiated by the
     complex step as well (their value at the point is left out: deviations).
     """
@@ -196,16 +197,16 @@ def planar_linear_model(
         xc[j] += 1e-100j
         C[:, j] = _complex_outputs(model, xc, names).imag / 1e-100
     D = np.zeros((len(names), model.ninputs))
-    note = Diagnostic(
+    remark = Diagnostic(
         SourceLocation(netlist.path, 0),
         f"planar mechanism: A, B, C, D are the exact Jacobians of its equations of motion at the "
         f"operating point ({point.method}, largest generalised force {point.residual:.2g}), in deviations "
         "from it (simulate integrates the nonlinear equations)",
     )
-    warnings = [*netlist.warnings, note]
+    warnings = [*netlist.warnings, *([remark] if note else [])]
     if point.drift:
         terms = ", ".join(f"d{k}/dt = {v:.6g}" for k, v in point.drift.items())
-        warnings.append(Diagnostic(note.loc, f"--at: not an equilibrium: {terms} (left out of the model)"))
+        warnings.append(Diagnostic(remark.loc, f"--at: not an equilibrium: {terms} (left out of the model)"))
     return StateSpaceModel(
         sp.csr_array(A),
         sp.csr_array(B),
@@ -297,7 +298,7 @@ def prepare_planar(
             )
     shown = tuple(outputs) if outputs else mech.coordinates
     names = list(dict.fromkeys([*shown, *extra]))
-    model = planar_linear_model(netlist, names, point=_rest_point(system))
+    model = planar_linear_model(netlist, names, point=_rest_point(system), note=False)
     x0 = _initial_state(system, ics) if ics else None
     return Prepared(model, shown, None, x0)
 
