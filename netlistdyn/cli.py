@@ -988,7 +988,12 @@ def simulate(
             from netlistdyn.io.animate import animation_options, position_variables
 
             view = animation_options(animate, fps, speed, frame_size, geometry)
-            extra += position_variables(parsed)
+            if parsed.planar:
+                from netlistdyn.io import planar_animate
+
+                extra += planar_animate.position_variables(parsed)
+            else:
+                extra += position_variables(parsed)
         parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra), parsed)
         full = prepared.full
         if split is not None:
@@ -1042,7 +1047,12 @@ def simulate(
             from netlistdyn.io.animate import Animation
 
             signals = input_signals(parsed, horizon.tstep, horizon.tstop)
-            movie = Animation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
+            if parsed.planar:
+                from netlistdyn.io.planar_animate import PlanarAnimation
+
+                movie = PlanarAnimation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
+            else:
+                movie = Animation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
             frames = movie.save(animate)
             click.echo(f"netlistdyn: {animate}: {frames} frames at {fps:g} fps", err=True)
         if fmt == "json":

@@ -523,3 +523,25 @@ def test_chain_sums_equal_the_point_recursion(name: str) -> None:
         M1, Q1 = model.sums.mass_forcing(x[:n], x[n:], u)
         M2, Q2 = model.tree_mass_forcing(x[:n], x[n:], u)
         assert relative(M1, M2) <= MATRIX_RTOL and relative(Q1, Q2) <= MATRIX_RTOL
+
+
+def test_animation_draws_the_bobs_where_the_run_puts_them(tmp_path: Path) -> None:
+    """A frame's pixel at a bob's simulated position is the bob's colour; the gif has every frame."""
+    from netlistdyn.io.animate import Options
+    from netlistdyn.io.planar_animate import PlanarAnimation, position_variables
+
+    netlist = parse_file(str(PLANAR / "double_pendulum.cir"))
+    names = position_variables(netlist)
+    times = np.linspace(0.0, 1.0, 101)
+    run, _ = simulate_planar(netlist, names, times, "DOP853", 1e-10, np.array([1.0, -0.5, 0.0, 0.0]))
+    movie = PlanarAnimation(netlist, times, run.outputs, names, np.zeros((101, 1)), Options(fps=10))
+    for frame in (0, 5, 10):
+        image = movie.render(frame)
+        k = int(movie.frames()[frame])
+        for bob in ("b1", "b2"):
+            x, y = run.outputs[k, names.index(f"px({bob})")], run.outputs[k, names.index(f"py({bob})")]
+            _fig, ax, _ = movie._figure()
+            col, row = ax.transData.transform((x, y))
+            r, g, b = image[int(image.shape[0] - row), int(col)]
+            assert r > 150 and g < 100 and b < 100, (frame, bob, (r, g, b))
+    assert movie.save(str(tmp_path / "dp.gif")) == 11

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -493,8 +494,8 @@ class ChainSums:
         )
 
     def mass_forcing(
-        self, q: NDArray[np.generic], qd: NDArray[np.generic], u: NDArray[np.generic]
-    ) -> tuple[NDArray[np.generic], NDArray[np.generic]]:
+        self, q: NDArray[Any], qd: NDArray[Any], u: NDArray[Any]
+    ) -> tuple[NDArray[Any], NDArray[Any]]:
         """M(q) and Q(q, q', u) (see the class)."""
         ql = q * self.link  # a slider's row: cos 0 = 1, sin 0 = 0, so u is its track d
         cs, sn = np.cos(ql), self.sign * np.sin(ql)
@@ -553,8 +554,8 @@ class PlanarModel:
         self.sums = ChainSums.of(mechanism)
 
     def kinematics(
-        self, q: NDArray[np.generic], qd: NDArray[np.generic]
-    ) -> tuple[NDArray[np.generic], NDArray[np.generic], NDArray[np.generic], NDArray[np.float64]]:
+        self, q: NDArray[Any], qd: NDArray[Any]
+    ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[np.float64]]:
         """Per point: position p (m), Jacobian J = ∂p/∂q, bias c = J' q' (m/s²); per frame jφ.
 
         Returns
@@ -608,8 +609,8 @@ class PlanarModel:
         return p, J, c, jphi
 
     def mass_forcing(
-        self, q: NDArray[np.generic], qd: NDArray[np.generic], u: NDArray[np.generic]
-    ) -> tuple[NDArray[np.generic], NDArray[np.generic]]:
+        self, q: NDArray[Any], qd: NDArray[Any], u: NDArray[Any]
+    ) -> tuple[NDArray[Any], NDArray[Any]]:
         """M(q) (kg, kg·m, kg·m²) and Q(q, q', u) (N, N·m): M q'' = Q.
 
         By :class:`ChainSums` when no slider rides on a turning frame, else by the recursion of
@@ -620,8 +621,8 @@ class PlanarModel:
         return self.tree_mass_forcing(q, qd, u)
 
     def tree_mass_forcing(
-        self, q: NDArray[np.generic], qd: NDArray[np.generic], u: NDArray[np.generic]
-    ) -> tuple[NDArray[np.generic], NDArray[np.generic]]:
+        self, q: NDArray[Any], qd: NDArray[Any], u: NDArray[Any]
+    ) -> tuple[NDArray[Any], NDArray[Any]]:
         """M(q) and Q(q, q', u) from :meth:`kinematics`, point by point (any tree)."""
         mech = self.mechanism
         p, J, c, jphi = self.kinematics(q, qd)
@@ -650,7 +651,7 @@ class PlanarModel:
             Q += u[j] * jphi[point]
         return M, Q
 
-    def rhs(self, x: NDArray[np.generic], u: NDArray[np.generic]) -> NDArray[np.generic]:
+    def rhs(self, x: NDArray[Any], u: NDArray[Any]) -> NDArray[Any]:
         """x' = (q', M⁻¹ Q) at state x and inputs u."""
         n = self.n
         M, Q = self.mass_forcing(x[:n], x[n:], u)

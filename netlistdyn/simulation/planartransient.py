@@ -159,7 +159,7 @@ def simulate_planar(
             )
             status = "diverged"
     values = np.full((times.size, len(outputs)), np.nan)
-    for k in np.flatnonzero(finite):
+    for k in np.flatnonzero(finite).tolist():
         values[k] = system.outputs(states[k], outputs)
     if status == "ok":
         energy = energy_drift(system, states) if _loads_zero(system, times) else None

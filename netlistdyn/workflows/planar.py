@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -109,7 +110,7 @@ def planar_point(netlist: Netlist, at: Mapping[str, float] | None = None) -> Pla
     free = np.array([k for k in range(n) if k not in held], dtype=np.intp)
     zero = np.zeros(n)
 
-    def forcing(qq: NDArray[np.generic]) -> NDArray[np.generic]:
+    def forcing(qq: NDArray[Any]) -> NDArray[Any]:
         return model.mass_forcing(qq, zero, u)[1]
 
     def jac(qq: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -334,6 +335,8 @@ def _initial_state(system: PlanarSystem, ics: Sequence[str]) -> NDArray[np.float
         if not sep:
             raise UsageError(f"--ic {item}: expected NAME=VALUE")
         value = parse_number(text.strip())
+        if value is None:
+            raise UsageError(f"--ic {item}: {text.strip()!r} is not a number")
         if key in states:
             x[states[key]] = value
         elif key.startswith("x(") and key[2:].rstrip(")") in ends:
