@@ -566,6 +566,10 @@ def analyze(
         if symbolic or symbols is not None:
             if minimal:
                 raise UsageError("--symbolic shows the compiled model; it cannot be combined with --minimal")
+            if parsed.planar:
+                raise UsageError(
+                    "--symbolic is not available for planar mechanisms (A, B are numeric Jacobians)"
+                )
             from netlistdyn.formulation.symbolic import symbolic_model
 
             keep = None if symbols is None else [n.strip() for n in symbols.split(",") if n.strip()]

@@ -41,6 +41,9 @@ from netlistdyn.devices.planar import PlanarCard
 
 #: Complex-step size: the derivative's truncation error h²|f'''|/6 is far below rounding.
 COMPLEX_STEP = 1e-100
+#: An entry of A or B within this many ulp of its column's largest is rounding of an exact zero
+#: (the solve with M(q) leaves ~n·eps·cond(M) of the column there: 2e-16 in the DIPC's B).
+ROUNDING_ZERO = 16 * np.finfo(float).eps
 #: Relative size of a mass-matrix pivot below which a coordinate moves no mass.
 SINGULAR_MASS = 1e-12
 
@@ -410,21 +413,9 @@ class ChainSums:
     force_dir: NDArray[np.float64]
     force_input: NDArray[np.intp]
     torque: NDArray[np.float64]  # (n, inputs)
-
-    @property
-    def t_link(self) -> NDArray[np.float64]:
-        """s·l of a link (0 for a slider)."""
-        return self.sign * self.length * self.link
-
-    @property
-    def t_slider(self) -> NDArray[np.float64]:
-        """1 for a slider (0 for a link)."""
-        return 1.0 - self.link
-
-    @property
-    def bias(self) -> NDArray[np.float64]:
-        """−l of a link (0 for a slider)."""
-        return -self.length * self.link
+    t_link: NDArray[np.float64]  # s·l of a link, 0 for a slider
+    t_slider: NDArray[np.float64]  # 1 for a slider, 0 for a link
+    bias: NDArray[np.float64]  # −l of a link, 0 for a slider
 
     @classmethod
     def of(cls, mechanism: Mechanism) -> ChainSums | None:
@@ -491,6 +482,9 @@ class ChainSums:
             np.array([unit(angle) for _, angle, _ in mechanism.forces]).reshape(len(mechanism.forces), 2),
             np.array([j for _, _, j in mechanism.forces], dtype=np.intp),
             torque,
+            sign * length * link,
+            1.0 - link,
+            -length * link,
         )
 
     def mass_forcing(
@@ -673,6 +667,9 @@ class PlanarModel:
             uc = u.astype(complex)
             uc[j] += 1j * COMPLEX_STEP
             B[:, j] = self.rhs(x, uc).imag / COMPLEX_STEP
+        for matrix in (A, B):  # an exact zero computed through M⁻¹ comes out as a few ulp of the column
+            scale = np.max(np.abs(matrix), axis=0, initial=0.0)
+            matrix[np.abs(matrix) <= ROUNDING_ZERO * scale] = 0.0
         return A, B
 
     def energy(self, x: NDArray[np.float64]) -> tuple[float, float]:
