@@ -545,3 +545,12 @@ def test_animation_draws_the_bobs_where_the_run_puts_them(tmp_path: Path) -> Non
             r, g, b = image[int(image.shape[0] - row), int(col)]
             assert r > 150 and g < 100 and b < 100, (frame, bob, (r, g, b))
     assert movie.save(str(tmp_path / "dp.gif")) == 11
+
+
+@pytest.mark.parametrize("command", [["validate"], ["sweep", "--param", "l1=0.5,1"]])
+def test_commands_without_a_planar_path_refuse_in_one_line(command: list[str]) -> None:
+    code, out = _cli(*command, str(PLANAR / "double_pendulum.cir"))
+    assert code != 0 and len(out.strip().splitlines()) == 1, out
+    assert (
+        "double_pendulum.cir:10: GRAVITY: a planar mechanism is compiled by op, analyze and simulate" in out
+    )

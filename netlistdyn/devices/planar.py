@@ -95,8 +95,8 @@ class PlanarCard:
 
     @property
     def label(self) -> str:
-        """How messages name the card: ``LINK r1``."""
-        return f"{self.keyword.upper()} {self.name}"
+        """How messages name the card: ``LINK r1`` (``GRAVITY``)."""
+        return "GRAVITY" if self.keyword == "gravity" else f"{self.keyword.upper()} {self.name}"
 
     @property
     def key(self) -> str:

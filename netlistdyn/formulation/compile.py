@@ -79,6 +79,13 @@ def formulate(
     as its linearisation at the DC operating point (:mod:`netlistdyn.nonlinear`).
     ``devices`` is the registry the element kinds are looked up in (a test's own kinds).
     """
+    if netlist.planar:  # its exact equations: netlistdyn.formulation.planar, through op/analyze/simulate
+        card = netlist.planar[0]
+        raise NetlistError(
+            f"{card.label}: a planar mechanism is compiled by op, analyze and simulate only "
+            "(this command works on circuits and one-dimensional mechanics)",
+            card.loc,
+        )
     if netlist.is_nonlinear:
         netlist, outputs = linearised(netlist, outputs)
     probes = tuple(parse_probes(outputs, netlist)) if outputs else tuple(default_probes(netlist))
