@@ -512,7 +512,7 @@ def test_ic_violating_a_rod_length_names_the_rod(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name", sorted(p.name for p in PLANAR.glob("*.cir")))
 def test_chain_sums_equal_the_point_recursion(name: str) -> None:
-    """The array form (ChainSums) and the point-by-point recursion give the same M and Q."""
+    """ChainSums, the generated rhs and the point-by-point recursion give the same M, Q and x'."""
     model = PlanarSystem(parse_file(str(PLANAR / name))).model
     assert model.sums is not None
     rng = np.random.default_rng(7)
@@ -523,6 +523,13 @@ def test_chain_sums_equal_the_point_recursion(name: str) -> None:
         M1, Q1 = model.sums.mass_forcing(x[:n], x[n:], u)
         M2, Q2 = model.tree_mass_forcing(x[:n], x[n:], u)
         assert relative(M1, M2) <= MATRIX_RTOL and relative(Q1, Q2) <= MATRIX_RTOL
+        p1, p2 = model.sums.positions(x[:n]), model.kinematics(x[:n], x[n:])[0]
+        assert np.max(np.abs(p1 - p2)) <= 1e-14 * max(1.0, float(np.max(np.abs(p2))))
+        # the generated straight-line rhs (planarcode), real and through the complex step
+        assert model.code is not None
+        tree = np.r_[x[n:], np.linalg.solve(M2, Q2)]
+        assert relative(model.rhs(x, u), tree) <= MATRIX_RTOL
+        assert relative(model.rhs(x.astype(complex), u).real, tree) <= MATRIX_RTOL
 
 
 def test_animation_draws_the_bobs_where_the_run_puts_them(tmp_path: Path) -> None:

@@ -38,6 +38,7 @@ from netlistdyn.circuit.netlist import GROUND, Netlist
 from netlistdyn.circuit.sources import SourceValues, breakpoints
 from netlistdyn.circuit.waveforms import Dc
 from netlistdyn.devices.planar import PlanarCard
+from netlistdyn.formulation.planarcode import MAX_GENERATED, compile_rhs, evaluate
 
 #: Complex-step size: the derivative's truncation error h²|f'''|/6 is far below rounding.
 COMPLEX_STEP = 1e-100
@@ -416,6 +417,9 @@ class ChainSums:
     t_link: NDArray[np.float64]  # s·l of a link, 0 for a slider
     t_slider: NDArray[np.float64]  # 1 for a slider, 0 for a link
     bias: NDArray[np.float64]  # −l of a link, 0 for a slider
+    D: NDArray[np.float64]  # (points, n): 1 where joint k moves the point
+    R: NDArray[np.float64]  # (points, 2): the fixed part of each point's position
+    turned: NDArray[np.float64]  # (2, n): base turned by 90 degrees
 
     @classmethod
     def of(cls, mechanism: Mechanism) -> ChainSums | None:
@@ -485,7 +489,19 @@ class ChainSums:
             sign * length * link,
             1.0 - link,
             -length * link,
+            D,
+            R,
+            np.stack([-base[:, 1], base[:, 0]]),
         )
+
+    def positions(self, q: NDArray[Any]) -> NDArray[Any]:
+        """Every point's position p = R + D W(q) (m): ``(points, 2)``."""
+        ql = q * self.link
+        cs, sn = np.cos(ql), self.sign * np.sin(ql)
+        ex, ey = self.base[:, 0], self.base[:, 1]
+        w = self.length + q * (1.0 - self.link)
+        W = np.stack([w * (ex * cs - ey * sn), w * (ex * sn + ey * cs)], axis=1)
+        return self.R + self.D @ W
 
     def mass_forcing(
         self, q: NDArray[Any], qd: NDArray[Any], u: NDArray[Any]
@@ -493,18 +509,16 @@ class ChainSums:
         """M(q) and Q(q, q', u) (see the class)."""
         ql = q * self.link  # a slider's row: cos 0 = 1, sin 0 = 0, so u is its track d
         cs, sn = np.cos(ql), self.sign * np.sin(ql)
-        ex, ey = self.base[:, 0], self.base[:, 1]
-        ux, uy = ex * cs - ey * sn, ex * sn + ey * cs
-        a, b = self.t_link, self.t_slider  # t = s·l·u⊥ (link), d (slider)
-        tx, ty = b * ux - a * uy, a * ux + b * uy
-        h = self.bias * qd * qd  # a = −l θ'² u (link), 0 (slider)
-        ax, ay = h * ux, h * uy
+        base, turned = self.base.T, self.turned  # (2, n): d0 = (ex, ey) and d0⊥ = (−ey, ex)
+        U = base * cs + turned * sn  # (ux, uy): the rod's direction, a slider's track
+        P = turned * cs - base * sn  # u⊥
+        T = self.t_slider * U + self.t_link * P  # t_k = ∂w_k/∂q_k: s·l·u⊥ (link), d (slider)
+        A = (self.bias * qd * qd) * U  # a_k = −l θ'² u (link), 0 (slider)
         Mc = self.Mc
-        M = Mc * (np.multiply.outer(tx, tx) + np.multiply.outer(ty, ty)) + self.Mrot
-        g = self.gravity
-        Q = self.mk * (tx * g[0] + ty * g[1]) - (
-            Mc * (np.multiply.outer(tx, ax) + np.multiply.outer(ty, ay))
-        ).sum(1)
+        M = Mc * (T.T @ T) + self.Mrot
+        Q = self.mk * (self.gravity @ T) - (Mc * (T.T @ A)).sum(1)
+        tx, ty = T[0], T[1]
+        ux, uy = U[0], U[1]
         if self.spring_k.size or self.damper_d.size:
             w = self.length + q * (1.0 - self.link)  # |w_k|: l (link), s0 + s (slider)
             W = np.stack([w * ux, w * uy], axis=1)
@@ -546,6 +560,8 @@ class PlanarModel:
         self.ninputs = len(mechanism.inputs)
         self.stats = {"f": 0, "jac": 0}
         self.sums = ChainSums.of(mechanism)
+        #: the generated straight-line rhs (real, complex) of :mod:`netlistdyn.formulation.planarcode`
+        self.code = compile_rhs(self.sums) if self.sums is not None and self.n <= MAX_GENERATED else None
 
     def kinematics(
         self, q: NDArray[Any], qd: NDArray[Any]
@@ -648,6 +664,12 @@ class PlanarModel:
     def rhs(self, x: NDArray[Any], u: NDArray[Any]) -> NDArray[Any]:
         """x' = (q', M⁻¹ Q) at state x and inputs u."""
         n = self.n
+        if self.code is not None:
+            real, cplx = self.code
+            try:
+                return evaluate(cplx if np.iscomplexobj(x) or np.iscomplexobj(u) else real, x, u)
+            except (ValueError, ZeroDivisionError):  # M not positive definite here: numpy's solve says so
+                pass
         M, Q = self.mass_forcing(x[:n], x[n:], u)
         return np.concatenate([x[n:], np.linalg.solve(M, Q)])
 
@@ -677,7 +699,7 @@ class PlanarModel:
         n = self.n
         q, qd = x[:n], x[n:]
         M, _ = self.mass_forcing(q, qd, np.zeros(self.ninputs))
-        p = self.kinematics(q, qd)[0]
+        p = self.positions(x)
         g = np.array(self.mechanism.gravity)
         potential = -sum(m * float(g @ p[point]) for point, m, _ in self.mechanism.bodies)
         for a, b, k, rest in self.mechanism.springs:
@@ -687,6 +709,8 @@ class PlanarModel:
     def positions(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Every point's (x, y) (m) at state x: ``(points, 2)``."""
         n = self.n
+        if self.sums is not None:
+            return np.asarray(self.sums.positions(x[:n]), dtype=float)
         return np.asarray(self.kinematics(x[:n], x[n:])[0], dtype=float)
 
     @property
@@ -757,7 +781,7 @@ def output_values(model: PlanarModel, x: NDArray[np.float64], names: Sequence[st
     states = {s.lower(): k for k, s in enumerate(mech.state_names)}
     points = {p: k for k, p in enumerate(mech.points)}
     n = model.n
-    p = model.positions(x)
+    p: NDArray[np.float64] | None = None
     p0 = None
     out = np.empty(len(names))
     for k, raw in enumerate(names):
@@ -771,6 +795,8 @@ def output_values(model: PlanarModel, x: NDArray[np.float64], names: Sequence[st
             point = GROUND
         if kind in ("px", "py", "x", "y") and point in points:
             axis = 0 if kind in ("px", "x") else 1
+            if p is None:
+                p = model.positions(x)
             value = p[points[point], axis]
             if kind in ("x", "y"):
                 if p0 is None:

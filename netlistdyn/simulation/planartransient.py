@@ -122,6 +122,7 @@ def simulate_planar(
         setting = f"step={step:g}, on the nonlinear equations"
         stats = {"steps": float(times.size - 1), "f": float(system.stats["f"])}
     else:
+        cpu = _time.process_time()
         used = max(rtol, PLANAR_MIN_RTOL)
         tstop = float(times[-1])
         edges = np.unique(np.r_[0.0, system.breakpoints(tstop), tstop])
@@ -148,7 +149,12 @@ def simulate_planar(
             if progress is not None:
                 progress(b / tstop)
         setting = f"rtol={used:g}" + (f", raised from {rtol:g}" if used != rtol else "")
-        stats = {"steps": float(steps), "f": float(system.stats["f"]), "jac": float(system.stats["jac"])}
+        stats = {
+            "steps": float(steps),
+            "f": float(system.stats["f"]),
+            "jac": float(system.stats["jac"]),
+            "integration_cpu": _time.process_time() - cpu,
+        }
     finite = np.all(np.isfinite(states), axis=1)
     if status == "ok":
         big = np.flatnonzero(np.max(np.abs(states), axis=1) > RUNAWAY)
