@@ -54,8 +54,8 @@ from netlistdyn.circuit.netlist import (
 from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin, Waveform, scaled
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
-from netlistdyn.devices.registry import REGISTRY, Registry
 from netlistdyn.devices.planar import PLANAR_KEYWORDS, PlanarCard, build_planar
+from netlistdyn.devices.registry import REGISTRY, Registry
 
 #: Default limit on the number of elements after subcircuit expansion; raise it
 #: with ``parse_text/parse_file(..., max_elements=N)`` or the environment
