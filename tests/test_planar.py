@@ -588,3 +588,12 @@ def test_a_slider_on_a_turning_frame_takes_the_point_recursion() -> None:
     above then check the recursion of PlanarModel.kinematics and the BODY's J)."""
     model = PlanarSystem(parse_file(str(PLANAR / "bead_on_rod.cir"))).model
     assert model.sums is None and model.code is None
+
+
+def test_held_point_reports_the_accelerations_of_its_release() -> None:
+    d = derivation("double_pendulum")
+    point = planar_point(ours(d), {"angle(r1)": 1.0})
+    assert abs(point.q[1]) <= 1e-14  # the lower rod hangs straight down
+    expected = sympy_rhs(d, np.array([1.0, point.q[1], 0.0, 0.0]))[2:]
+    got = np.array([point.drift["omega(r1)"], point.drift["omega(r2)"]])
+    assert relative(got, expected) <= MATRIX_RTOL

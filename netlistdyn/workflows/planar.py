@@ -140,8 +140,9 @@ def planar_point(netlist: Netlist, at: Mapping[str, float] | None = None) -> Pla
     scale = _weight_scale(model, u)
     drift: dict[str, float] = {}
     if held:
-        acc = model.rhs(np.concatenate([q, zero]), u)[n:]
-        drift = {mech.velocities[k]: float(acc[k]) for k in range(n) if abs(Q[k]) > EQUILIBRIUM_RTOL * scale}
+        if np.max(np.abs(Q), initial=0.0) > EQUILIBRIUM_RTOL * scale:  # released here, everything accelerates
+            acc = model.rhs(np.concatenate([q, zero]), u)[n:]
+            drift = {mech.velocities[k]: float(acc[k]) for k in range(n)}
     elif np.max(np.abs(Q), initial=0.0) > EQUILIBRIUM_RTOL * scale:
         raise NetlistError(
             f"no equilibrium found near q = 0 (largest generalised force left {np.max(np.abs(Q)):.3g}); "
