@@ -139,9 +139,9 @@ FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
     "nint": (lambda x: float(round(x)), 1, 1),
     "floor": (lambda x: float(math.floor(x)), 1, 1),
     "ceil": (lambda x: float(math.ceil(x)), 1, 1),
-    # Two arguments at least: ngspice 39 reads min(x) as min(x, 1) and max(x) as max(x, 1).
-    "min": (lambda *a: min(a), 2, 64),
-    "max": (lambda *a: max(a), 2, 64),
+    # As ngspice 39 reads them (measured): min(x) is min(x, 1) and max(x) is max(x, 1).
+    "min": (lambda *a: min(a) if len(a) > 1 else min(a[0], 1.0), 1, 64),
+    "max": (lambda *a: max(a) if len(a) > 1 else max(a[0], 1.0), 1, 64),
     "pow": (_pow, 2, 2),
     "pwr": (_pwr, 2, 2),
     "ternary_fcn": (lambda c, a, b: a if c else b, 3, 3),
@@ -705,8 +705,6 @@ class _Evaluator(Hooks[float | Linear]):
         if not least <= len(args) <= most:
             want = str(least) if least == most else f"{least} to {most}"
             extra = " (ngspice 39 silently uses the last of two)" if name == "log" and len(args) == 2 else ""
-            if name in ("min", "max") and len(args) == 1:
-                extra = f" (ngspice 39 reads {name}(x) as {name}(x, 1))"
             raise ExpressionError(f"{name} takes {want} argument(s), got {len(args)}{extra}")
         numbers = [self.number_of(a, f"{name}()") for a in args]
         try:
