@@ -16,7 +16,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
+from netlistdyn.analysis.coordinates import prepare
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.base.errors import UsageError
+from netlistdyn.spice.ngspice import ngspice_missing
 from netlistdyn.statespace.model import StateSpaceModel
 from netlistdyn.workflows.pipelines import (
     NetlistSource,
@@ -35,6 +38,7 @@ from netlistdyn.workflows.pipelines import (
     to_number,
     validation_pipeline,
 )
+from netlistdyn.workflows.sweep import SweepSource, expand_cases, run_sweep
 
 if TYPE_CHECKING:  # the module imports sympy, an optional extra loaded only by symbolic()
     from netlistdyn.formulation.symbolic import SymbolicModel
@@ -100,8 +104,6 @@ def simulate(
     outputs = output_names(outputs)
     with api_errors(params):
         if isinstance(x0, Mapping) and x0:
-            from netlistdyn.analysis.coordinates import prepare
-
             parsed = read_netlist(netlist, params)
             conditions = [
                 f"{name}={value if isinstance(value, str) else repr(float(value))}"
@@ -184,7 +186,6 @@ def validate(
         When ngspice is not installed.
     """
     outputs = output_names(outputs)
-    from netlistdyn.spice.ngspice import ngspice_missing
 
     missing = ngspice_missing()
     if missing:
@@ -240,7 +241,6 @@ def sweep(
     Sweep
     """
     outputs = output_names(outputs)
-    from netlistdyn.workflows.sweep import SweepSource, expand_cases, run_sweep
 
     if eig not in ("auto", "all", "extreme"):
         raise UsageError(f"eig: {eig!r}; choose auto, all or extreme")
@@ -267,8 +267,6 @@ def sweep(
 
 def eigenvalues(model: StateSpaceModel, which: str = "auto") -> Any:
     """The :class:`~netlistdyn.analysis.eigen.EigenAnalysis` of a model (``which`` as ``analyze --eig``)."""
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-
     if which not in ("auto", "all", "extreme"):
         raise UsageError(f"which: {which!r}; choose auto, all or extreme")
     return analyze_eigenvalues(model.A_sparse, which, pencil=model.pencil)
@@ -314,12 +312,8 @@ def compile(
     StateSpaceModel
     """
     outputs = output_names(outputs)
-    from netlistdyn.workflows.pipelines import compile_model
 
     if coordinates is not None:
-        from netlistdyn.analysis.coordinates import prepare
-        from netlistdyn.workflows.pipelines import api_errors, read_netlist
-
         with api_errors(params):
             return prepare(read_netlist(netlist, params), outputs, coordinates).model
     return compile_model(netlist, params, outputs)[1]
@@ -351,8 +345,7 @@ def symbolic(
         ``.numeric(values)`` to evaluate them.
     """
     outputs = output_names(outputs)
-    from netlistdyn.formulation.symbolic import symbolic_model
-    from netlistdyn.workflows.pipelines import api_errors, read_netlist
+    from netlistdyn.formulation.symbolic import symbolic_model  # noqa: PLC0415 (deferred, imports sympy: optional symbolic extra)
 
     with api_errors(params):
         return symbolic_model(read_netlist(netlist, params), outputs, keep)

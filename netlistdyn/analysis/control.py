@@ -37,7 +37,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.base.errors import UsageError
 from netlistdyn.statespace.model import CompileInfo, StateSpaceModel
 
 EPS = float(np.finfo(float).eps)
@@ -59,8 +63,6 @@ def _solve_log_system(system: sp.csr_array, rhs: np.ndarray) -> np.ndarray:
     vector per connected part); a ridge of 1e-12 of its largest diagonal entry
     picks the minimum-norm solution to that relative accuracy. One sparse LU.
     """
-    import scipy.sparse.linalg as spla
-
     normal = (system.T @ system).tocsc()
     ridge = 1e-12 * float(normal.diagonal().max())
     normal = normal + ridge * sp.identity(normal.shape[0], format="csc")
@@ -163,10 +165,6 @@ def _clusters(A: np.ndarray) -> list[_Mode]:
     closer than 1e-12 relative) are one repeated eigenvalue, which may span
     several parts.
     """
-    from scipy.sparse.csgraph import connected_components
-
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-
     n = A.shape[0]
     if n == 0:
         return []
@@ -759,8 +757,6 @@ def transfer_functions(model: StateSpaceModel) -> list[TransferFunction]:
     printed numerator is that of the notes: over the characteristic
     polynomial of A, i.e. multiplied by the cancelled factors.
     """
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-
     n = model.nstates
     if n:
         eig = analyze_eigenvalues(model.A, "all")
@@ -854,8 +850,6 @@ class CanonicalForm:
 
 
 def _check_canonical_size(model: StateSpaceModel) -> None:
-    from netlistdyn.base.errors import UsageError
-
     n = model.nstates
     if n == 0 or n > CANONICAL_STATE_LIMIT:
         raise UsageError(
@@ -899,8 +893,6 @@ def controller_form(model: StateSpaceModel, input: int | None = None) -> Canonic
     UsageError
         When no (or the chosen) input controls every state, or the model is too large.
     """
-    from netlistdyn.base.errors import UsageError
-
     _check_canonical_size(model)
     for j in [input] if input is not None else range(model.ninputs):
         T = _controller_transform(model.A, model.B[:, j])
@@ -917,8 +909,6 @@ def observer_form(model: StateSpaceModel, output: int | None = None) -> Canonica
     characteristic polynomial's coefficients fill Â's last column and the
     chosen row of Ĉ is [0 … 0 1].
     """
-    from netlistdyn.base.errors import UsageError
-
     _check_canonical_size(model)
     for i in [output] if output is not None else range(model.noutputs):
         T_c = _controller_transform(model.A.T, model.C[i])
@@ -974,8 +964,6 @@ def observer_form_multi(model: StateSpaceModel) -> CanonicalForm:
         When the outputs do not observe every state, or T_c is singular
         (A has a repeated eigenvalue with more than one eigenvector).
     """
-    from netlistdyn.base.errors import UsageError
-
     _check_canonical_size(model)
     A, C = model.A, model.C
     n = model.nstates

@@ -33,10 +33,12 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import mpmath as mp
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching, structural_rank
 
 from netlistdyn.statespace.model import Pencil
 
@@ -277,8 +279,6 @@ def _diagonal_blocks(G: sp.csr_array, E: sp.csr_array) -> list[tuple[np.ndarray,
     the other parts (which make a componentwise backward error meaningless)
     and where a root far from the rest is often alone.
     """
-    from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
-
     n = G.shape[0]
     pattern = sp.csr_matrix((abs(G) + abs(E)) > 0, dtype=np.int8)
     if n == 0 or pattern.shape[1] != n:
@@ -455,8 +455,6 @@ class _Residual:
         self.G, self.E, self.exact = G, E, exact
         self.digits = digits or RESIDUAL_DIGITS
         if exact:
-            import mpmath as mp
-
             self.mp = mp
             self.n = G.shape[0]
 
@@ -1005,8 +1003,6 @@ def structural_zeros(pencil: Pencil) -> int:
     structural rank deficiency is a lower bound on the multiplicity of the
     eigenvalue 0, decided exactly, independent of units and rounding.
     """
-    from scipy.sparse.csgraph import structural_rank
-
     rows, cols = _deflate(pencil.G, pencil.E)
     G = sp.csr_array(sp.csr_array(pencil.G)[rows][:, cols])
     G.eliminate_zeros()

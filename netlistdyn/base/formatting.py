@@ -75,7 +75,7 @@ def eng(value: float, unit: str = "", digits: int = 4) -> str:
 
 def eng_formatter(unit: str) -> Any:
     """A matplotlib tick formatter writing ``unit`` with SI prefixes (µs, kHz ...)."""
-    from matplotlib.ticker import EngFormatter
+    from matplotlib.ticker import EngFormatter  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
     return EngFormatter(unit=unit, sep=" ")
 

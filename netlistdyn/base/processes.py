@@ -8,6 +8,7 @@ solver must not stall the benchmark).
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import resource
@@ -105,8 +106,6 @@ class ProgramRun:
 def _die_with_parent() -> None:
     """In the child before exec (Linux): be killed when this process dies, even by SIGKILL."""
     with contextlib.suppress(Exception):
-        import ctypes
-
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 

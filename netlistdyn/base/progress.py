@@ -32,7 +32,7 @@ def bar(description: str, total: float | None, quiet: bool = False, unit: str = 
     unit : str
         Name of one step.
     """
-    from tqdm import tqdm
+    from tqdm import tqdm  # noqa: PLC0415 (deferred, tqdm: only when a bar is made, --help stays light)
 
     handle = tqdm(
         total=total,

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from netlistdyn.base.errors import SourceLocation
+from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.waveforms import Waveform
 
 GROUND = "0"
@@ -327,8 +327,6 @@ class Netlist:
         NetlistError
             When the combinations are more than ``limit``.
         """
-        from netlistdyn.base.errors import NetlistError
-
         cases: list[dict[str, float]] = [{}]
         for step in self.steps:
             if len(cases) * len(step.values) > limit:

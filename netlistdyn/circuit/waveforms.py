@@ -9,6 +9,7 @@ resolved with :meth:`Waveform.resolved` once ``tstep``/``tstop`` are known.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -598,8 +599,6 @@ def scaled(wave: Waveform, factor: float) -> Waveform:
 
 def breakpoint_limit() -> int:
     """The breakpoint limit: ``$NETLISTDYN_MAX_BREAKPOINTS`` when set to a positive integer."""
-    import os
-
     text = os.environ.get(MAX_BREAKPOINTS_VARIABLE, "").strip()
     if text.isdigit() and int(text) > 0:
         return int(text)

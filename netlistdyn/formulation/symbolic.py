@@ -41,6 +41,7 @@ from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD, carried_masses
 from netlistdyn.formulation.algebra import Block
 from netlistdyn.formulation.compile import formulate
 from netlistdyn.formulation.formulate import ElementValues, reduce
+from netlistdyn.formulation.operating import linearised
 
 #: Largest model (states) for which symbolic matrices are computed.
 SYMBOLIC_STATE_LIMIT = 12
@@ -165,8 +166,6 @@ def symbolic_model(
         For circuits the numeric compiler refuses.
     """
     if netlist.is_nonlinear:  # the symbols of its linearisation at the operating point
-        from netlistdyn.formulation.operating import linearised
-
         netlist, outputs = linearised(netlist, outputs)
     form = formulate(netlist, outputs)
     if form.model.nstates > SYMBOLIC_STATE_LIMIT:

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from netlistdyn.analysis.validity import SMALL_ANGLE_LIMIT
 from netlistdyn.base.atomic import write_bytes
 from netlistdyn.base.errors import UsageError
 from netlistdyn.circuit.netlist import GROUND, Netlist
@@ -426,7 +427,7 @@ class Animation:
 
     def draw(self, ax: Any, k: int) -> None:
         """Draw sample ``k`` into a matplotlib axes (cleared first)."""
-        from matplotlib.patches import Circle, Rectangle
+        from matplotlib.patches import Circle, Rectangle  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
         ax.cla()
         x0, x1, y0, y1 = self._limits
@@ -570,8 +571,6 @@ class Animation:
         return (pos.get(node, (0.0, 0.0))[0], 0.0)
 
     def _draw_labels(self, ax: Any, k: int) -> None:
-        from netlistdyn.analysis.validity import SMALL_ANGLE_LIMIT
-
         t = self.time[k]
         parts = [f"t = {t:.3f} s"]
         for j, (name, unit) in enumerate(self.scene.inputs):
@@ -628,8 +627,8 @@ class Animation:
 
     def _figure(self) -> tuple[Any, Any, Any]:
         if not hasattr(self, "_fig"):
-            from matplotlib.backends.backend_agg import FigureCanvasAgg
-            from matplotlib.figure import Figure
+            from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
+            from matplotlib.figure import Figure  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
             w, h = self.options.size
             fig = Figure(figsize=(w / 100, h / 100), dpi=100)
@@ -649,7 +648,7 @@ class Animation:
         """Write every frame to a .gif (Pillow) or .mp4 (ffmpeg); returns the frame count."""
         suffix = Path(path).suffix.lower()
         if suffix == ".gif":
-            from PIL import Image
+            from PIL import Image  # noqa: PLC0415 (deferred, Pillow: only to write a GIF)
 
             def frame(k: int) -> Any:
                 rgb = Image.fromarray(self.render(k))

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.io
 import scipy.sparse as sp
 
 from netlistdyn.base.atomic import write_bytes
@@ -65,8 +66,6 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
         )
         write_bytes(path, buffer.getvalue())
     elif suffix == ".mat":
-        import scipy.io
-
         buffer = io.BytesIO()
         cells = {k: np.array(v, dtype=object) for k, v in labels.items()}
         mats = {k: v.toarray() if dense else sp.csc_matrix(v) for k, v in arrays.items()}
@@ -183,8 +182,6 @@ def _read_npz(source: Path) -> dict[str, Any]:
 
 
 def _read_mat(source: Path) -> dict[str, Any]:
-    import scipy.io
-
     data = scipy.io.loadmat(source)
     doc: dict[str, Any] = {}
     for key in ("states", "inputs", "outputs"):

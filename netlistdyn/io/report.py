@@ -13,9 +13,12 @@ from typing import Any
 
 import scipy.sparse as sp
 
+from netlistdyn.analysis import control
 from netlistdyn.analysis.eigen import EigenAnalysis
 from netlistdyn.base.errors import UsageError
-from netlistdyn.base.formatting import eng, format_matrix
+from netlistdyn.base.formatting import element_value, eng, format_matrix
+from netlistdyn.devices.units import signal_units
+from netlistdyn.io.display import simulation_rows
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: Largest model whose matrices are printed in text and written as nested lists in JSON.
@@ -124,8 +127,6 @@ def _unit_of_state(name: str) -> str:
 
 def text_report(model: StateSpaceModel, eig: EigenAnalysis | None, path: str, netlist: Any = None) -> str:
     """The human-readable ``analyze`` report (``netlist``, when given, tells V from m/s in v(...) states)."""
-    from netlistdyn.devices.units import signal_units
-
     told = dict(zip(model.states, signal_units(netlist, model.states), strict=True)) if netlist else {}
 
     def unit(state: str) -> str:
@@ -347,8 +348,6 @@ def simulation_dict(sim: Any, netlist: str | None = None) -> dict[str, Any]:
 
 def simulation_summary(sim: Any) -> str:
     """Per output: value at the end, minimum and maximum (the samples go to --csv or JSON)."""
-    from netlistdyn.io.display import simulation_rows
-
     rows = simulation_rows(sim)
     width = max(8, *(len(r[0]) for r in rows)) if rows else 8
     lines = [f"  {'output':<{width}} {'final':>14} {'min':>14} {'max':>14}"]
@@ -562,8 +561,6 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
     fnk (Hz) and damping ratio ζk beside it. Sweeps of more than :data:`SWEEP_COLUMN_MODES` modes
     list the eigenvalues under each case.
     """
-    from netlistdyn.base.formatting import eng
-
     names = list(cases[0]["params"]) if cases else []
     modes = max((len(c.get("eigenvalues", ())) for c in cases), default=0)
     columns = modes <= SWEEP_COLUMN_MODES
@@ -610,7 +607,7 @@ def sweep_text(cases: Sequence[dict[str, Any]]) -> str:
 
 def symbolic_dict(model: Any) -> dict[str, Any]:
     """JSON for ``analyze --symbolic``: entries as sympy strings (``sympy.sympify`` reads them)."""
-    from netlistdyn.formulation.symbolic import entry_strings, json_names
+    from netlistdyn.formulation.symbolic import entry_strings, json_names  # noqa: PLC0415 (deferred, imports sympy: optional symbolic extra)
 
     names = json_names(list(model.symbols))
     doc: dict[str, Any] = {
@@ -629,9 +626,7 @@ def symbolic_dict(model: Any) -> dict[str, Any]:
 
 def symbolic_text(model: Any) -> str:
     """The non-zero symbolic entries of each matrix, labelled by state, input and output."""
-    import sympy
-
-    from netlistdyn.base.formatting import element_value
+    import sympy  # noqa: PLC0415 (deferred, sympy: optional symbolic extra)
 
     symbols = ", ".join(
         element_value(name, value, model.units.get(name, "")) for name, (_, value) in model.symbols.items()
@@ -665,8 +660,6 @@ CANONICAL_KINDS = ("controller", "observer", "observer_all_outputs")
 
 def canonical_forms(model: StateSpaceModel) -> list[Any]:
     """Controller, observer (one output) and observer (all outputs) forms, or why each is unavailable."""
-    from netlistdyn.analysis import control
-
     out: list[Any] = []
     for build in (control.controller_form, control.observer_form, control.observer_form_multi):
         try:

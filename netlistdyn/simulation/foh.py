@@ -36,6 +36,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import mpmath as mp
 import numpy as np
 import scipy.linalg as sla
 from numpy.typing import NDArray
@@ -253,8 +254,6 @@ class FohPropagator:
         False (nothing changed) when mpmath fails or the eigenvectors are not
         independent.
         """
-        import mpmath as mp
-
         try:
             with mp.workdps(MODAL_REFINE_DIGITS):
                 a = mp.matrix(self.A.tolist())
@@ -750,7 +749,7 @@ def _modal_grid_states(
                 z = decay * z + w[k - a]
                 zs[k + 1] = z
             continue
-        from scipy.signal import lfilter  # ~1 s to import: only for long runs
+        from scipy.signal import lfilter  # ~1 s to import: only for long runs  # noqa: PLC0415 (deferred, scipy.signal: 0.6 s of CPU to import)
 
         for j in range(lam.size):
             zs[a + 1 : b + 1, j], _ = lfilter([1.0], [1.0, -decay[j]], w[:, j], zi=[decay[j] * z[j]])

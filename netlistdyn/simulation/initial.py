@@ -25,11 +25,15 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse as sparse
+import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.netlist import GROUND, Diagnostic, Element, Kind, Netlist
 from netlistdyn.circuit.waveforms import Am, Dc, Exp, Pulse, Pwl, Sffm, Sin, Waveform
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.formulation.descriptor import assemble
 from netlistdyn.simulation.foh import InputSignals
 from netlistdyn.statespace.model import StateSpaceModel
 
@@ -241,8 +245,6 @@ def _forced_operating_point(
     model); the operating point and those currents solve ``A x + B u0 + Bw w = 0`` together with
     ``v(node) = value`` for each node.
     """
-    from netlistdyn.formulation.compile import compile_netlist
-
     conditions = held_nodes(netlist)
     nodes = list(conditions)
     first = netlist.initial_conditions[0].loc
@@ -398,8 +400,6 @@ def descriptor_start(
 
 def _extended(netlist: Netlist, system: Any, extra: tuple[Element, ...], outputs: Sequence[str]) -> Any:
     """The system assembled with extra current sources (same unknowns: they reduce nothing)."""
-    from netlistdyn.formulation.descriptor import assemble
-
     extended = assemble(replace(netlist, elements=netlist.elements + extra), outputs)
     if tuple(extended.variables) != tuple(system.variables):  # pragma: no cover - current sources
         raise RuntimeError("the initial-condition sources changed the descriptor unknowns")
@@ -409,8 +409,6 @@ def _extended(netlist: Netlist, system: Any, extra: tuple[Element, ...], outputs
 def _descriptor_uic(
     netlist: Netlist, system: Any, outputs: Sequence[str] | None, values: list[tuple[Element, float]]
 ) -> NDArray[np.float64]:
-    import scipy.sparse.linalg as spla
-
     x0 = np.zeros(system.size)
     index = {name.lower(): k for k, name in enumerate(system.variables)}
     for element, value in values:
@@ -447,8 +445,6 @@ def _voltages(netlist: Netlist) -> list[str]:
 def _descriptor_held(
     netlist: Netlist, system: Any, outputs: Sequence[str] | None, u0: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    import scipy.sparse as sparse
-    import scipy.sparse.linalg as spla
 
     conditions = held_nodes(netlist)
     nodes = list(conditions)

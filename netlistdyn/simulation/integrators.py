@@ -44,7 +44,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cache
 
+import mpmath as mp
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
@@ -228,8 +230,6 @@ def pade_factors_exact(
     nearest to its mirror image −p̄, so every factor is close to 1 in
     modulus on the imaginary axis.
     """
-    import mpmath as mp
-
     with mp.workdps(60):
         num_deg, den_deg = (order, order) if diagonal else (order - 1, order)
 
@@ -639,8 +639,6 @@ def balance_sparse(A: sp.sparray) -> np.ndarray:
     without permutation) up to :data:`DENSE_BALANCE_LIMIT` states; above, one
     sweep of the Osborne update, d = 2^round(log2 √(column/row norms)).
     """
-    import scipy.linalg as sla
-
     n = A.shape[0]
     if n == 0:
         return np.ones(0)

@@ -55,6 +55,9 @@ from netlistdyn.base.errors import NetlistError, SourceLocation
 from netlistdyn.circuit.sources import SourceValues, breakpoints
 from netlistdyn.circuit.waveforms import Waveform
 from netlistdyn.formulation.descriptor import DescriptorSystem
+from netlistdyn.simulation._cf_table import CF
+from netlistdyn.simulation.integrators import pade_factors as stored
+from netlistdyn.simulation.integrators import pade_factors_exact
 
 #: Breakpoints within this fraction of the output step from an output time are put on it.
 SNAP = 1e-6
@@ -90,7 +93,7 @@ MAX_LEVEL = 48
 def single_thread() -> Iterator[None]:
     """Limit BLAS to one thread (SuperLU's dense kernels are slower with two on small blocks)."""
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import threadpool_limits  # noqa: PLC0415 (deferred, threadpoolctl: optional scale extra)
     except ImportError:  # pragma: no cover - optional
         yield
         return
@@ -157,8 +160,6 @@ def pade_factors(order: int, diagonal: bool = False) -> tuple[tuple[complex, com
     R(z) = Π (c + α/(z − p) + ᾱ/(z − p̄)); computed with mpmath in
     :mod:`netlistdyn.integrators` (stored there for order 12).
     """
-    from netlistdyn.simulation.integrators import pade_factors as stored
-    from netlistdyn.simulation.integrators import pade_factors_exact
 
     return stored(diagonal) if order == 12 else pade_factors_exact(order, diagonal)
 
@@ -231,8 +232,6 @@ class CFStep:
     def __init__(
         self, system: DescriptorSystem, h: float, degree: int, steady: _Steady | None = None
     ) -> None:
-        from netlistdyn.simulation._cf_table import CF
-
         r_inf, pairs, _ = CF[degree]
         self.h = h
         self.r_inf = r_inf

@@ -24,6 +24,8 @@ from netlistdyn.circuit.probes import Probe
 from netlistdyn.formulation.operating import operating_point
 from netlistdyn.simulation.foh import Horizon, input_signals, propagate_foh
 from netlistdyn.simulation.initial import around_equilibrium, transient_start
+from netlistdyn.simulation.nltransient import NONLINEAR_VALIDATE_RTOL, nonlinear_start
+from netlistdyn.simulation.nltransient import run as run_nonlinear
 from netlistdyn.spice.ngspice import (
     SpiceRun,
     SpiceSettings,
@@ -275,8 +277,6 @@ def compare(
     u0 = signals(np.array([0.0]))[0]
     nonlinear_x0 = None
     if netlist.is_nonlinear:  # where the nonlinear circuit starts (its own operating point)
-        from netlistdyn.simulation.nltransient import nonlinear_start
-
         nonlinear_x0, uic, how = nonlinear_start(netlist, u0)
         settings = replace(settings, uic=uic)
         notes.append(f"start: {how}")
@@ -315,9 +315,6 @@ def compare(
         )
     start = time.perf_counter()
     if netlist.is_nonlinear:  # the circuit itself, integrated at ngspice's times (not the linearisation)
-        from netlistdyn.simulation.nltransient import NONLINEAR_VALIDATE_RTOL
-        from netlistdyn.simulation.nltransient import run as run_nonlinear
-
         names = [p.name for p in probes]
         span = (horizon.tstep, horizon.tstop)
         ours = run_nonlinear(

@@ -15,8 +15,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-from netlistdyn.base.errors import ControlDimension
+from netlistdyn.base.errors import ControlDimension, UsageError
 from netlistdyn.circuit.netlist import Diagnostic
+from netlistdyn.statespace.views import model_html, model_latex, model_text
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,18 +233,12 @@ class StateSpaceModel:
 
     def __repr__(self) -> str:
         """Sizes, labels and (up to 16 states) the labelled matrices; never sparse-array dumps."""
-        from netlistdyn.statespace.views import model_text
-
         return model_text(self)
 
     def _repr_html_(self) -> str:
-        from netlistdyn.statespace.views import model_html
-
         return model_html(self)
 
     def _repr_latex_(self) -> str | None:
-        from netlistdyn.statespace.views import model_latex
-
         return model_latex(self)
 
     def to_scipy(self) -> object:
@@ -350,7 +345,6 @@ def _refuse_input_derivative(model: StateSpaceModel, target: str) -> None:
     """Raise when D1 ≠ 0: a proper state-space object cannot carry y = … + D1 u'."""
     if not model.has_input_derivative:
         return
-    from netlistdyn.base.errors import UsageError
 
     rows, cols = np.nonzero(model.D1)
     terms = ", ".join(
@@ -374,7 +368,7 @@ def to_scipy(model: StateSpaceModel) -> object:
         proper state-space form has no such term, and dropping it would give a
         different system.
     """
-    import scipy.signal as sig
+    import scipy.signal as sig  # noqa: PLC0415 (deferred, scipy.signal: 0.6 s of CPU to import)
 
     _refuse_input_derivative(model, "scipy.signal.StateSpace")
     return sig.StateSpace(np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D))
@@ -393,7 +387,7 @@ def to_control(model: StateSpaceModel) -> object:
     """
     _refuse_input_derivative(model, "control.StateSpace")
     try:
-        import control
+        import control  # noqa: PLC0415 (deferred, python-control: optional control extra)
     except ImportError:
         raise ImportError("python-control is not installed: pip install control") from None
     return control.ss(

@@ -9,13 +9,18 @@ from typing import Any
 
 import numpy as np
 
-from netlistdyn.base.formatting import VIEW_MATRIX_LIMIT, latex_label, matrix_cell, plural, signal_list
+from netlistdyn.base.formatting import (
+    VIEW_MATRIX_LIMIT,
+    format_matrix,
+    latex_label,
+    matrix_cell,
+    plural,
+    signal_list,
+)
 
 
 def model_text(model: Any) -> str:
     """``repr(model)``: sizes, labels and (for small models) the labelled matrices."""
-    from netlistdyn.base.formatting import format_matrix
-
     head = (
         f"<StateSpaceModel {model.title!r}: {plural(model.nstates, 'state')}, "
         f"{plural(model.ninputs, 'input')}, {plural(model.noutputs, 'output')}>"

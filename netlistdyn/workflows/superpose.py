@@ -43,8 +43,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.circuit.netlist import NONLINEAR_KINDS, Kind, Netlist
+from netlistdyn.circuit.sources import source_waveform
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.simulation.foh import choose_horizon
+from netlistdyn.simulation.initial import uses_uic
+from netlistdyn.workflows.large import descriptor_horizon, descriptor_wanted, simulate_large
+from netlistdyn.workflows.pipelines import simulation_pipeline
+from netlistdyn.workflows.sweep import map_tasks
 
 #: Breakpoints closer than this fraction of the horizon count as the same time when grouping.
 SAME_TIME = 1e-12
@@ -96,8 +104,6 @@ def check_linear(netlist: Netlist) -> None:
 
 def source_breakpoints(netlist: Netlist, tstep: float, tstop: float) -> list[frozenset[float]]:
     """Each independent source's breakpoints in (0, tstop), rounded to :data:`SAME_TIME` of tstop."""
-    from netlistdyn.circuit.sources import source_waveform
-
     quantum = SAME_TIME * tstop
     out = []
     for element in netlist.sources:
@@ -136,8 +142,6 @@ def source_groups(points: Sequence[frozenset[float]], count: int) -> list[list[i
 
 def initial_state_given(netlist: Netlist, x0_given: bool) -> bool:
     """True when the initial state is not the sources' own (a job of its own carries it)."""
-    from netlistdyn.simulation.initial import uses_uic
-
     if x0_given:
         return True
     if uses_uic(netlist):
@@ -216,8 +220,6 @@ def run_job(task: Task, job: Job) -> tuple[Any, list[str]]:
     net = job_netlist(task.netlist, job)
     warnings: list[str] = []
     if task.path == "descriptor":
-        from netlistdyn.workflows.large import simulate_large
-
         ics = task.ics if job.initial else tuple(f"{item.partition('=')[0]}=0" for item in task.ics)
         result = simulate_large(
             net,
@@ -230,8 +232,6 @@ def run_job(task: Task, job: Job) -> tuple[Any, list[str]]:
             warn=lambda w: warnings.append(str(w)),
         )
     else:
-        from netlistdyn.workflows.pipelines import simulation_pipeline
-
         x0 = task.x0
         if x0 is not None and not job.initial:
             x0 = np.zeros_like(x0)
@@ -354,8 +354,6 @@ def superpose(
     NetlistError, UsageError
         The first job that raised one (they name the netlist, not the job).
     """
-    from netlistdyn.workflows.sweep import map_tasks
-
     wall = time.perf_counter()
     share = replace(task, rtol=task.rtol / len(jobs))
     parts, warnings = [], []
@@ -377,8 +375,6 @@ def descriptor_task(
     rtol: float,
 ) -> tuple[Task, Any]:
     """The shared task of a superposed descriptor simulation, and its horizon."""
-    from netlistdyn.workflows.large import descriptor_horizon
-
     check_linear(netlist)
     horizon = descriptor_horizon(netlist, tstop, tstep)
     task = Task(
@@ -405,8 +401,6 @@ def explicit_task(
     force: bool,
 ) -> tuple[Task, Any]:
     """The shared task of a superposed simulation of the explicit model, and its horizon."""
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.simulation.foh import choose_horizon
 
     check_linear(netlist)
     if method == "euler":
@@ -468,14 +462,10 @@ def simulate_superposed(
     ics : sequence of str
         ``--ic`` texts of the descriptor form (``v(n1)=0.5``).
     """
-    from netlistdyn.workflows.large import descriptor_wanted
-
     check_linear(netlist)
     if descriptor_wanted(netlist, method):
         task, horizon = descriptor_task(netlist, outputs, tstop, tstep, ics, rtol)
     else:
-        from netlistdyn.formulation.compile import compile_netlist
-
         model = compile_netlist(netlist, list(outputs) if outputs else None)
         task, horizon = explicit_task(netlist, model, tstop, tstep, method, rtol, atol, x0, force)
     planned = plan(netlist, jobs, task.tstep, task.tstop, bool(task.ics) or task.x0 is not None)
