@@ -302,7 +302,7 @@ def _print_warnings(warnings: Any) -> None:
 class OneLineGroup(click.Group):
     """Click's group, but command-line errors are one line on stderr (exit 2), like ours."""
 
-    def main(self, *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+    def main(self, *args: Any, **kwargs: Any) -> Any:
         if kwargs.get("standalone_mode", True) is False:
             return super().main(*args, **kwargs)
         kwargs["standalone_mode"] = False

@@ -89,7 +89,7 @@ def _compare(netlist: Netlist) -> dict[str, float] | None:
     order = [names.index(s) for s in model.states]
     n = circuit.size
     u = np.zeros(len(circuit.sources))
-    system.inputs = lambda t: u  # type: ignore[method-assign]
+    system.inputs = lambda t: u
     x0 = np.zeros(len(names))
     jac = system.jacobian(0.0, x0)
     J = (jac.toarray() if sp.issparse(jac) else np.asarray(jac))[np.ix_(order, order)]

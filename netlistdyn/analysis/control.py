@@ -407,7 +407,7 @@ def deflate(
             if W.shape[1] == 0:
                 continue
             Q = _complement(W)
-            norm_a = max(np.linalg.norm(A, 2), 1e-300)
+            norm_a = max(float(np.linalg.norm(A, 2)), 1e-300)
             coupling = W.T @ A @ Q if kind == "c" else Q.T @ A @ W
             error += (np.linalg.norm(coupling, 2) if coupling.size else 0.0) / norm_a + 10 * n * EPS
             b_norms = np.linalg.norm(B, axis=0)[None, :]

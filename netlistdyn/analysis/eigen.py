@@ -219,7 +219,7 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         first_order = EPS * float(norm) * n
         # A multiple root perturbed at 50 digits splits by up to ~10^-25: cluster at that level.
         tol = mp.mpf(10) ** (5 - REFINE_DIGITS // 2) * (1 + norm)
-        for k in np.flatnonzero(~(abs_err <= first_order)):
+        for k in np.flatnonzero(~(abs_err <= first_order)).tolist():
             lam = values[k] if mp.im(values[k]) else mp.re(values[k])  # real: an mpf, for svd_r
             members = [j for j in range(n) if abs(values[j] - lam) <= tol]
             if len(members) < 2:
@@ -267,9 +267,9 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
     if pencil is not None and pencil.nstates < n:
         # Displacement integrators: A = [[A0, 0], [Cv, 0]], eigenvalues those of A0 and exact zeros.
         k, n0 = n - pencil.nstates, pencil.nstates
-        modes, method, notes = _dense_modes(a[:n0, :n0], pencil) if n0 else ([], "no states", ())
+        modes, method, inner = _dense_modes(a[:n0, :n0], pencil) if n0 else ([], "no states", ())
         modes = modes + [Mode(0j, 0.0, 0.0, 0.0) for _ in range(k)]
-        return modes, f"{method}; {k} displacement integrator(s): eigenvalue 0, exact", notes
+        return modes, f"{method}; {k} displacement integrator(s): eigenvalue 0, exact", inner
     if n > ESTIMATE_LIMIT:
         values = np.linalg.eigvals(a)
         method = f"LAPACK geev (balanced QR) on A; no error estimates above {ESTIMATE_LIMIT} states"
@@ -576,7 +576,7 @@ def analyze_eigenvalues(
     dense = None
     notes: tuple[str, ...] = ()
     if complete:
-        dense = a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+        dense = a.toarray() if isinstance(a, sp.sparray | sp.spmatrix) else np.asarray(a, dtype=float)
         modes, method, notes = _dense_modes(dense, pencil) if n else ([], "no states", ())
         if data_error > 0 and n:
             modes = _cover_data_error(modes, dense, data_error)

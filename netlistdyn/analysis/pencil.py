@@ -32,6 +32,7 @@ import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import mpmath as mp
 import numpy as np
@@ -95,6 +96,8 @@ class _Factor:
         scaled = sp.diags_array(self.r) @ matrix @ sp.diags_array(self.c)
         n = matrix.shape[0]
         self.dense = n <= DENSE_PENCIL
+        #: LAPACK's (lu, piv) of the dense matrix, or SuperLU of the sparse one.
+        self.lu: tuple[np.ndarray, np.ndarray] | spla.SuperLU
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", sla.LinAlgWarning)
             if self.dense:
@@ -112,23 +115,17 @@ class _Factor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """P⁻¹ b = C S⁻¹ R b."""
         rhs = self.r * b
-        x = sla.lu_solve(self.lu, rhs, check_finite=False) if self.dense else self.lu.solve(rhs)
+        if isinstance(self.lu, tuple):
+            x = sla.lu_solve(self.lu, rhs, check_finite=False)
+        else:
+            x = self.lu.solve(rhs)
         return self.c * x
 
     def solve_scaled(self, b: np.ndarray, hermitian: bool = False) -> np.ndarray:
         """S⁻¹ b (or S⁻ᴴ b): a solve with the equilibrated matrix itself."""
-        if self.dense:
+        if isinstance(self.lu, tuple):
             return sla.lu_solve(self.lu, b, trans=2 if hermitian else 0, check_finite=False)
         return self.lu.solve(b, trans="H" if hermitian else "N")
-
-    def solve_h(self, b: np.ndarray) -> np.ndarray:
-        """P⁻ᴴ b = R S⁻ᴴ C b."""
-        rhs = self.c * b
-        if self.dense:
-            x = sla.lu_solve(self.lu, rhs, trans=2, check_finite=False)
-        else:
-            x = self.lu.solve(rhs, trans="H")
-        return self.r * x
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -438,6 +435,9 @@ def _cleaned(w: np.ndarray) -> list[np.ndarray]:
 EXACT_RESIDUAL_BUDGET = 400_000
 #: Digits of the extended-precision residual.
 RESIDUAL_DIGITS = 40
+
+#: An eigenvalue during refinement: a complex, or an mpmath ``mpc`` when the residual is exact.
+Lam: TypeAlias = complex | mp.mpc
 #: Digits of the vector and residual when a first refinement did not verify the eigenvalue.
 DEEP_DIGITS = 80
 
@@ -458,7 +458,7 @@ class _Residual:
             self.mp = mp
             self.n = G.shape[0]
 
-    def __call__(self, lam: object, w: np.ndarray) -> np.ndarray:
+    def __call__(self, lam: Lam, w: np.ndarray) -> np.ndarray:
         if not self.exact:
             lam_c = complex(lam)
             return (self.G @ w) + lam_c * (self.E @ w)
@@ -472,14 +472,14 @@ class _Residual:
                 acc[i] += lam * mp.mpf(float(e.real)) * wm[j]
             return np.array([complex(v) for v in acc])
 
-    def add(self, lam: object, step: complex) -> object:
+    def add(self, lam: Lam, step: complex) -> Lam:
         """λ + step, kept in extended precision when the residual is."""
         if not self.exact:
             return complex(lam) + step
         with self.mp.workdps(self.digits):
             return lam + self.mp.mpc(step)
 
-    def start(self, value: complex) -> object:
+    def start(self, value: complex) -> Lam:
         if not self.exact:
             return complex(value)
         with self.mp.workdps(self.digits):
@@ -554,8 +554,8 @@ def check_eigenvalue(
 
 
 def _newton(
-    prep: _Prepared, residual: _Residual, lam: object, w: np.ndarray, z: np.ndarray, k: int, tol: float
-) -> list[tuple[object, float, np.ndarray, np.ndarray, np.ndarray]]:
+    prep: _Prepared, residual: _Residual, lam: Lam, w: np.ndarray, z: np.ndarray, k: int, tol: float
+) -> list[tuple[Lam, float, np.ndarray, np.ndarray, np.ndarray]]:
     """Newton steps on the bordered system; the iterates (λ, |step|, w, z, residual).
 
     ``w`` may be an object array of extended-precision numbers; it is then
@@ -564,7 +564,7 @@ def _newton(
     G, E = prep.G, prep.E
     n = G.shape[0]
     extended = w.dtype == object
-    history: list[tuple[object, float, np.ndarray, np.ndarray, np.ndarray]] = []
+    history: list[tuple[Lam, float, np.ndarray, np.ndarray, np.ndarray]] = []
     for _ in range(NEWTON_STEPS + 1):
         r = residual(lam, w)
         lam_c = complex(lam)
@@ -606,7 +606,7 @@ def _newton(
 
 
 def _finish(
-    history: list[tuple[object, float, np.ndarray, np.ndarray, np.ndarray]],
+    history: list[tuple[Lam, float, np.ndarray, np.ndarray, np.ndarray]],
     prep: _Prepared,
     residual: _Residual,
     lam0: complex,

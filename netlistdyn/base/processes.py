@@ -45,8 +45,8 @@ def run_in_child_status(
     target: Callable[..., None], args: tuple[Any, ...], timeout: float | None
 ) -> tuple[Any | None, str]:
     """:func:`run_in_child`, also saying how the child ended: "ok", "timeout" or "crashed"."""
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    ctx = multiprocessing.get_context(method)
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork") if fork else multiprocessing.get_context("spawn")
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=target, args=(child, *args), daemon=True)
     proc.start()

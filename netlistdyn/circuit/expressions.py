@@ -660,7 +660,7 @@ class _Evaluator(Hooks[float | Linear]):
                 a, b = la.const, lb.const
             else:
                 raise NonlinearError(f"operator '{op}' on a node voltage or branch current")
-        a, b = float(a), float(b)  # type: ignore[arg-type]
+        a, b = float(a), float(b)
         try:
             if op == "+":
                 return a + b

@@ -578,6 +578,23 @@ class Random:
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
         raise self._refuse()
 
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Refused, as every transient query of a random waveform."""
+        raise self._refuse()
+
+    def breakpoints(self, tstop: float) -> tuple[float, ...]:
+        """Refused, as every transient query of a random waveform."""
+        raise self._refuse()
+
+    @property
+    def piecewise_linear(self) -> bool:
+        """Refused, as every transient query of a random waveform."""
+        raise self._refuse()
+
+    def exponential_terms(self) -> tuple[tuple[float, complex, complex], ...]:
+        """Refused, as every transient query of a random waveform."""
+        raise self._refuse()
+
 
 Waveform = Dc | Pulse | Sin | Pwl | Exp | Am | Sffm | Random
 

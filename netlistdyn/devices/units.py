@@ -78,7 +78,7 @@ def signal_units(netlist: Any, names: Sequence[str]) -> tuple[str, ...]:
             out.append("rad")
             continue
         if head == "p":  # a mass's momentum or an inertia's angular momentum
-            words = {keyword.get(a) for a in args}
+            words = {keyword.get(a, "") for a in args}
             out.append(
                 {"mass": "kg·m/s", "inertia": "kg·m²/s"}.get(words.pop(), "") if len(words) == 1 else ""
             )

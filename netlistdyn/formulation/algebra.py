@@ -29,12 +29,16 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, SingularCircuitError
 from netlistdyn.circuit.netlist import Netlist
 
 #: A factorisation whose pivots span more than this ratio is treated as singular.
 SINGULAR_RCOND = 1e-14
+
+#: Positions of rows or columns: a sequence of ints or an integer array (the classes' ``np.intp`` arrays).
+Index = Sequence[int] | NDArray[np.integer[Any]]
 
 
 class NotSupportedError(NetlistError):
@@ -70,10 +74,10 @@ class Algebra(Protocol):
     def zeros(self, rows: int, cols: int) -> Any:
         """The zero matrix."""
 
-    def rows(self, matrix: Any, index: Sequence[int]) -> Any:
+    def rows(self, matrix: Any, index: Index) -> Any:
         """The rows ``index`` of ``matrix``."""
 
-    def cols(self, matrix: Any, index: Sequence[int]) -> Any:
+    def cols(self, matrix: Any, index: Index) -> Any:
         """The columns ``index`` of ``matrix``."""
 
     def hstack(self, blocks: Sequence[Any]) -> Any:
@@ -123,10 +127,10 @@ class SparseFloats:
     def zeros(self, rows: int, cols: int) -> sp.csr_array:
         return sp.csr_array((rows, cols))
 
-    def rows(self, matrix: sp.csr_array, index: Sequence[int]) -> sp.csr_array:
+    def rows(self, matrix: sp.csr_array, index: Index) -> sp.csr_array:
         return sp.csr_array(matrix[index, :]) if len(index) else sp.csr_array((0, matrix.shape[1]))
 
-    def cols(self, matrix: sp.csr_array, index: Sequence[int]) -> sp.csr_array:
+    def cols(self, matrix: sp.csr_array, index: Index) -> sp.csr_array:
         return sp.csr_array(matrix[:, index]) if len(index) else sp.csr_array((matrix.shape[0], 0))
 
     def hstack(self, blocks: Sequence[sp.csr_array]) -> sp.csr_array:
@@ -247,7 +251,7 @@ def _substitute_algebraic_derivatives(yb: Block, involved: Sequence[str], netlis
     g = r_scale[:, None] * yb.y.toarray()[rows] * c_scale[None, :]
     rhs = -r_scale[:, None] * np.hstack([yb.x.toarray()[rows], yb.u.toarray()[rows]])
     scaled_solution, *_ = np.linalg.lstsq(g, rhs, rcond=None)
-    if np.linalg.norm(g @ scaled_solution - rhs) > 1e-9 * max(np.linalg.norm(rhs), 1e-300):
+    if np.linalg.norm(g @ scaled_solution - rhs) > 1e-9 * max(float(np.linalg.norm(rhs)), 1e-300):
         raise unsupported
     kernel = sla.null_space(g, rcond=1e-12) if g.shape[0] else np.eye(n_y)
     if kernel.size and np.max(np.abs(kernel[z])) > 1e-9:
@@ -404,7 +408,7 @@ class RationalMatrix:
         rows, cols = (range(n)[s] for s, n in zip(key, self.shape, strict=True))
         return self.pick(rows, cols)
 
-    def pick(self, rows: Sequence[int], cols: Sequence[int]) -> RationalMatrix:
+    def pick(self, rows: Index, cols: Index) -> RationalMatrix:
         """The submatrix of the given rows and columns, in that order."""
         row_at = {int(r): k for k, r in enumerate(rows)}
         col_at = {int(c): k for k, c in enumerate(cols)}
@@ -452,10 +456,10 @@ class ExactRationals:
     def zeros(self, rows: int, cols: int) -> RationalMatrix:
         return RationalMatrix({}, (rows, cols))
 
-    def rows(self, matrix: RationalMatrix, index: Sequence[int]) -> RationalMatrix:
+    def rows(self, matrix: RationalMatrix, index: Index) -> RationalMatrix:
         return matrix.pick(index, range(matrix.shape[1]))
 
-    def cols(self, matrix: RationalMatrix, index: Sequence[int]) -> RationalMatrix:
+    def cols(self, matrix: RationalMatrix, index: Index) -> RationalMatrix:
         return matrix.pick(range(matrix.shape[0]), index)
 
     def hstack(self, blocks: Sequence[RationalMatrix]) -> RationalMatrix:

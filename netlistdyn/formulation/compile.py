@@ -90,7 +90,7 @@ def formulate(
         netlist, outputs = linearised(netlist, outputs)
     probes = tuple(parse_probes(outputs, netlist)) if outputs else tuple(default_probes(netlist))
     check_value_range(netlist)
-    failure: NetlistError | None = None
+    failure: NetlistError | OutputDerivativeError | None = None
     topology: TopologyError | None = None
     for circuit, tree in tree_candidates(netlist, devices):
         try:

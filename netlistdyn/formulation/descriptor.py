@@ -217,7 +217,7 @@ def reduce_sources(
     n_nodes: int,
     branch_of: dict[str, int],
     source_col: dict[str, int],
-    needed: set[str | None],
+    needed: set[str],
 ) -> tuple[sp.csc_array, sp.csc_array, sp.csc_array, sp.csr_array, sp.csr_array, list[str], int]:
     """Eliminate 0 V sources (node merges) and grounded supplies (known node voltages).
 

@@ -523,10 +523,10 @@ def check_couplings(netlist: Netlist) -> tuple[Diagnostic, ...]:
         matrix = np.diag([inductors[name].value for name in names])
         for k in members:
             assert k.coupled is not None
-            a, b = (pos[name] for name in k.coupled)
-            m = _numeric_mutual(k, inductors[names[a]], inductors[names[b]])
-            matrix[a, b] += m
-            matrix[b, a] += m
+            i, j = (pos[name] for name in k.coupled)
+            m = _numeric_mutual(k, inductors[names[i]], inductors[names[j]])
+            matrix[i, j] += m
+            matrix[j, i] += m
         # Scaled to a unit diagonal (dimensionless coupling matrix), definiteness is scale-free.
         d = 1.0 / np.sqrt(np.diag(matrix))
         coupling_matrix = matrix * d[:, None] * d[None, :]
@@ -616,7 +616,10 @@ def _law_matrices(
 def classify(circuit: CircuitGraph, tree: TreeSplit, netlist: Netlist) -> Classes:
     """Sort the primaries into states, sources, excess elements and the rest."""
     inputs = {e.key: j for j, e in enumerate(netlist.sources)}
-    x_caps, x_inds, s, d, y, source_input = [], [], [], [], [], []
+    x_caps: list[int] = []
+    x_inds: list[int] = []
+    d: list[int] = []
+    s, y, source_input = [], [], []
     for branch in circuit.branches:
         k = branch.index
         in_tree = bool(tree.in_tree[k])
@@ -923,8 +926,8 @@ def _current_weights(
     if not through:
         return []
     key_branch: dict[str, int] = {}
-    for b in circuit.branches:  # a two-port's current is its first port's
-        key_branch.setdefault(b.element.key, b.index)
+    for branch in circuit.branches:  # a two-port's current is its first port's
+        key_branch.setdefault(branch.element.key, branch.index)
     by_key = {e.key: e for e in netlist.elements}
     mutual: dict[str, list[tuple[str, Any]]] = {}
     if held:

@@ -9,7 +9,7 @@ read it.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -41,7 +41,8 @@ class NonlinearSystem:
         self.netlist = netlist
         c = self.circuit = NonlinearCircuit(netlist)
         self.waveforms = resolved_waveforms(netlist, span)
-        self.inputs = SourceValues(self.waveforms)
+        #: u(t): the sources' waveforms (a caller may hold them, as the operating point does).
+        self.inputs: Callable[[float], NDArray[np.float64]] = SourceValues(self.waveforms)
         nc, nl, nd = len(c.capacitors), len(c.inductors), len(c.charged_diodes)
         self.nstates = nc + nl + nd + len(c.disp_index)
         self.offsets = (nc, nc + nl)
@@ -73,6 +74,7 @@ class NonlinearSystem:
                         scols.append(c.node_index[node])
                         svals.append(sign * g)
         for k, d in enumerate(c.charged_diodes):
+            assert d.charge_branch is not None  # charged_diodes are those with a charge branch
             srows.append(nc + nl + k)
             scols.append(d.charge_branch)
             svals.append(1.0)

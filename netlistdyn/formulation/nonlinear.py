@@ -500,14 +500,14 @@ class NonlinearCircuit:
         """
         keyed = {e.key: e for e in self.netlist.elements}
         local = [(e, law) for e in self.netlist.elements if (law := _element_law(e, keyed)) is not None]
+        junction: list[Element] = []  # each diode's series resistor and junction charge, in order
         for e in self.netlist.elements:
             if e.kind is Kind.DIODE and e.diode is not None:
                 if e.diode.RS > 0:
-                    rs = _series_resistance(e)
-                    local.append((rs, _element_law(rs, keyed)))
+                    junction.append(_series_resistance(e))
                 if e.diode.CJO > 0 or e.diode.TT > 0:
-                    charge = Element(Kind.CAPACITOR, f"{e.name}#q", _junction_nodes(e), 1.0, e.loc)
-                    local.append((charge, _element_law(charge, keyed)))
+                    junction.append(Element(Kind.CAPACITOR, f"{e.name}#q", _junction_nodes(e), 1.0, e.loc))
+        local += [(e, law) for e in junction if (law := _element_law(e, keyed)) is not None]
         # each branch's law by branch: its v, i, dv, di, control and u terms as (column, coefficient)
         table: dict[BranchRef, tuple[list[tuple[Any, Any]], ...]] = {}
         where: dict[BranchRef, tuple[str, str, str]] = {}  # its unknown's name and nodes
@@ -516,13 +516,11 @@ class NonlinearCircuit:
                 key = e.key
                 for port in range(len(e.nodes) // 2):
                     table[(key, port)] = ([], [], [], [], [], [])
-                    where[(key, port)] = (
-                        key if port == 0 else f"{key}#{port + 1}",
-                        *e.nodes[2 * port : 2 * port + 2],
-                    )
+                    pos, neg = e.nodes[2 * port : 2 * port + 2]
+                    where[(key, port)] = (key if port == 0 else f"{key}#{port + 1}", pos, neg)
         for _, laws in local:
-            for field_, terms in enumerate((laws.v, laws.i, laws.dv, laws.di, laws.control, laws.u)):
-                for r, c, x in terms:
+            for field_, entries in enumerate((laws.v, laws.i, laws.dv, laws.di, laws.control, laws.u)):
+                for r, c, x in entries:
                     table[r][field_].append((c, x))
         readers = {(key, 0) for key in read}
         for ref, (_, i, _, di, _, _) in table.items():

@@ -79,7 +79,7 @@ def _held_point(
 ) -> OperatingPoint:
     """The point with some states held: the others by least squares on f, its drift f(x0, u0)."""
     system = NonlinearSystem(netlist)
-    system.inputs = lambda t: u  # type: ignore[method-assign]
+    system.inputs = lambda t: u
     try:
         x = circuit.states_at(circuit.operating_point(u))
     except NoOperatingPoint:
@@ -90,7 +90,7 @@ def _held_point(
     f = system.f(0.0, x)
     for _ in range(50 if free.size else 0):
         jac = system.jacobian(0.0, x)
-        jac = jac.toarray() if sp.issparse(jac) else np.asarray(jac)
+        jac = jac.toarray() if isinstance(jac, sp.csc_array) else np.asarray(jac)
         step = np.linalg.lstsq(jac[:, free], -f, rcond=None)[0]
         for _ in range(40):  # damped: a step must lower |f| (and keep the network solvable)
             trial = x.copy()
@@ -109,7 +109,7 @@ def _held_point(
             break
     f = system.f(0.0, x)
     jac = system.jacobian(0.0, x)
-    jac = jac.toarray() if sp.issparse(jac) else np.asarray(jac)
+    jac = jac.toarray() if isinstance(jac, sp.csc_array) else np.asarray(jac)
     scale = np.abs(jac) @ np.abs(x)
     names = circuit.state_names
     drift = {names[k]: float(f[k]) for k in range(f.size) if abs(f[k]) > EQUILIBRIUM_RTOL * scale[k]}

@@ -38,7 +38,7 @@ except ImportError:  # sympy is the optional "symbolic" extra
     raise missing("sympy", "--symbolic") from None
 from netlistdyn.circuit.netlist import Element, Kind, Netlist
 from netlistdyn.devices.mechanics import DISPLACEMENT_KEYWORD, carried_masses
-from netlistdyn.formulation.algebra import Block
+from netlistdyn.formulation.algebra import Block, Index
 from netlistdyn.formulation.compile import formulate
 from netlistdyn.formulation.formulate import ElementValues, reduce
 from netlistdyn.formulation.operating import linearised
@@ -303,10 +303,10 @@ class RationalFunctions:
     def zeros(self, rows: int, cols: int) -> sympy.Matrix:
         return sympy.zeros(rows, cols)
 
-    def rows(self, matrix: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
+    def rows(self, matrix: sympy.Matrix, index: Index) -> sympy.Matrix:
         return matrix.extract([int(k) for k in index], list(range(matrix.cols)))
 
-    def cols(self, matrix: sympy.Matrix, index: Sequence[int]) -> sympy.Matrix:
+    def cols(self, matrix: sympy.Matrix, index: Index) -> sympy.Matrix:
         return matrix.extract(list(range(matrix.rows)), [int(k) for k in index])
 
     def hstack(self, blocks: Sequence[sympy.Matrix]) -> sympy.Matrix:

@@ -345,7 +345,7 @@ class Animation:
         )
 
     def _longest_chain(self) -> float:
-        below = {r.pivot: [] for r in self.scene.rods}
+        below: dict[str, list[Rod]] = {r.pivot: [] for r in self.scene.rods}
         for r in self.scene.rods:
             below.setdefault(r.pivot, []).append(r)
 

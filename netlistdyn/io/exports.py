@@ -58,12 +58,14 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
                 coo = sp.coo_array(v)
                 stored.update({f"{k}_shape": np.array(coo.shape), f"{k}_row": coo.row, f"{k}_col": coo.col})
                 stored[f"{k}_data"] = coo.data
-        np.savez(
-            buffer,
-            title=np.array(model.title),
+        # Keywords name the archive's members; typed Any because numpy's stub would also let a
+        # dict[str, ndarray] fill savez's allow_pickle: bool.
+        members: dict[str, Any] = {
+            "title": np.array(model.title),
             **stored,
             **{k: np.array(v, dtype=str) for k, v in labels.items()},
-        )
+        }
+        np.savez(buffer, **members)
         write_bytes(path, buffer.getvalue())
     elif suffix == ".mat":
         buffer = io.BytesIO()

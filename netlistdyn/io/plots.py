@@ -228,8 +228,9 @@ def _sparse_symlog_locator(linthresh: float, step: int) -> Any:
     """A locator with ticks at 0 and ±10^k for every ``step``-th decade from ``linthresh``."""
     from matplotlib.ticker import Locator
 
-    class SparseSymlog(Locator):  # type: ignore[misc]
+    class SparseSymlog(Locator):
         def __call__(self) -> Any:
+            assert self.axis is not None  # matplotlib calls a locator through the axis it is set on
             low, high = self.axis.get_view_interval()
             return self.tick_values(low, high)
 

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import mpmath as mp
 import numpy as np
 import scipy.linalg as sla
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from netlistdyn.analysis.eigen import EigenAnalysis
 from netlistdyn.circuit.netlist import Netlist
@@ -103,14 +103,14 @@ class InputSignals:
     breakpoints: NDArray[np.float64]
     max_smooth_step: float
 
-    def __call__(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Input values, shape ``(len(t), ninputs)``."""
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Input values, shape ``(len(t), ninputs)``, at the times ``t`` (s)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if not self.waveforms:
             return np.zeros((t.size, 0))
         return np.column_stack([w(t) for w in self.waveforms])
 
-    def left(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+    def left(self, t: ArrayLike) -> NDArray[np.float64]:
         """Limits from the left, shape ``(len(t), ninputs)``: differs from the value only at a jump.
 
         An interval [a, b] between grid points sees the inputs from
@@ -177,11 +177,12 @@ def input_signals(netlist: Netlist, tstep: float, tstop: float) -> InputSignals:
 MODAL_COND_LIMIT = 1e4
 
 
-def _phi12(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+def _phi12(z: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
     """φ1(z) = (e^z − 1)/z and φ2(z) = (e^z − 1 − z)/z², without cancellation for small |z|.
 
     φ1 from ``expm1`` is accurate everywhere; φ2 cancels for small |z| and
-    takes its Taylor series there (|z| < 1/2: 16 terms reach 1e-19).
+    takes its Taylor series there (|z| < 1/2: 16 terms reach 1e-19). ``z`` may be real (a real
+    spectrum): it is taken as complex.
     """
     z = np.asarray(z, dtype=complex)
     zero = z == 0
@@ -817,7 +818,7 @@ def _modal_at_times(
             + _forced_response(lam, terms, inv_b, grid[k], tau, active[k])
         )
         out[first : first + t.size] = np.real(z_t @ vecs.T)
-        if observed is not None:
+        if observed is not None and seen is not None:  # both or neither
             observed[first : first + t.size] = np.real(z_t @ seen.T)
         zmax = np.maximum(zmax, np.max(np.abs(z_t), axis=0))
         if progress is not None:

@@ -220,19 +220,16 @@ def operating_point(netlist: Netlist, model: StateSpaceModel, u0: NDArray[np.flo
     # Displacement states of x(...) outputs only integrate a velocity: they start at 0 (the
     # displacement from the start), and the operating point is solved for the others.
     keep = np.array([s not in model.info.integrators for s in model.states])
-    x0 = np.zeros(n)
     inner = _solve_unique(model.A_sparse.toarray()[np.ix_(keep, keep)], rhs[keep])
-    if inner is not None:
-        x0[keep] = inner
-    else:
-        x0 = None
-    if x0 is None:
+    if inner is None:
         raise NetlistError(
             "no unique DC operating point to start the transient from (the model has a zero "
             "eigenvalue: a node that only capacitors reach, a loop of inductors or a free mass); "
             "add UIC to the .tran line to start from the given initial conditions, or give --ic",
             _where(netlist),
         )
+    x0 = np.zeros(n)
+    x0[keep] = inner
     return x0
 
 

@@ -246,7 +246,7 @@ def pade_factors_exact(
         tiny = mp.mpf(10) ** -30
         real_zeros = [z for z in zeros if abs(mp.im(z)) < tiny]
         upper = [z for z in zeros if mp.im(z) >= tiny]
-        factors = []
+        factors: list[tuple[complex, complex, float]] = []
         used: set[int] = set()
         for p in sorted(poles, key=lambda q: -mp.im(q)):
             if len(used) < len(upper):
@@ -255,15 +255,15 @@ def pade_factors_exact(
                 used.add(j)
                 z = upper[j]
                 alpha = (p - z) * (p - mp.conj(z)) / (p - mp.conj(p))
-                factors.append([complex(p), complex(alpha), 1.0])
+                factors.append((complex(p), complex(alpha), 1.0))
             else:
                 (z_real,) = real_zeros
                 beta = lead * (p - z_real) / (p - mp.conj(p))
-                factors.append([complex(p), complex(beta), 0.0])
+                factors.append((complex(p), complex(beta), 0.0))
                 lead = mp.mpf(1)
         if lead != 1:  # diagonal approximants of even order have leading coefficient 1
-            factors[0] = [factors[0][0], complex(factors[0][1] * lead), float(lead)]
-    return tuple((p, a, c) for p, a, c in factors)
+            factors[0] = (factors[0][0], complex(factors[0][1] * lead), float(lead))
+    return tuple(factors)
 
 
 class _PadeStep:
@@ -347,7 +347,7 @@ def _rational(
     breakpoint_set = set(signals.breakpoints.tolist())
     x = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float) / d  # balanced coordinates
     cache: dict[tuple[float, bool], _PadeStep] = {}
-    stats = {"steps": 0, "rejected": 0, "factorisations": 0}
+    stats: dict[str, float] = {"steps": 0, "rejected": 0, "factorisations": 0}  # counts stay ints
 
     def stepper(h: float, diagonal: bool) -> _PadeStep:
         key = (float(f"{h:.14g}"), diagonal)

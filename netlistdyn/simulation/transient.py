@@ -147,7 +147,7 @@ def dc_operating_point(system: DescriptorSystem, u0: NDArray[np.float64], where:
     x = lu.solve(-(system.B @ u0))
     residual = np.linalg.norm(system.A @ x + system.B @ u0)
     scale = abs(system.A) @ np.abs(x) + abs(system.B) @ np.abs(u0)
-    if not np.all(np.isfinite(x)) or residual > 1e-8 * max(np.linalg.norm(scale), 1e-300):
+    if not np.all(np.isfinite(x)) or residual > 1e-8 * max(float(np.linalg.norm(scale)), 1e-300):
         raise NetlistError(
             "no DC operating point: the DC matrix is numerically singular", SourceLocation(where, 0)
         )

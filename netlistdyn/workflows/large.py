@@ -202,8 +202,9 @@ def simulate_large(
 
         u0 = np.array([float(np.asarray(w(np.array([0.0])))[0]) for w in waves])
         x0, start, warnings = descriptor_start(netlist, system, outputs, u0)
-        for warning in warnings if warn is not None else ():
-            warn(warning)
+        if warn is not None:
+            for warning in warnings:
+                warn(warning)
     started = time.process_time()
     run = run_transient(system, waves, times, x0, uic=uic, rtol=rtol, where=netlist.path, progress=progress)
     cpu = time.process_time() - started

@@ -356,7 +356,8 @@ def superpose(
     """
     wall = time.perf_counter()
     share = replace(task, rtol=task.rtol / len(jobs))
-    parts, warnings = [], []
+    parts: list[Any] = []
+    warnings: list[str] = []
     for result, said in map_tasks(run_job, share, [(job,) for job in jobs], workers, scheduler):
         parts.append(result)
         warnings.extend(w for w in said if w not in warnings)
