@@ -595,6 +595,10 @@ class Random:
         """Refused, as every transient query of a random waveform."""
         raise self._refuse()
 
+    def spice(self) -> str:
+        """Refused: the ngspice text is written from the resolved waveform, which is refused."""
+        raise self._refuse()
+
 
 Waveform = Dc | Pulse | Sin | Pwl | Exp | Am | Sffm | Random
 

@@ -547,8 +547,6 @@ def mode_figures(re: float, im: float) -> tuple[float, float]:
 
 
 def _mode_cells(re: float, im: float) -> list[str]:
-    from netlistdyn.base.formatting import eng
-
     fn, zeta = mode_figures(re, im)
     return [_eigenvalue(re, im), eng(fn, "Hz", 4), "-" if math.isnan(zeta) else f"{zeta:.4g}"]
 

@@ -684,7 +684,7 @@ class Sweep:
     def to_frame(self) -> Any:
         """:meth:`to_records` as a pandas ``DataFrame`` (needs pandas: ``pip install pandas``)."""
         try:
-            import pandas
+            import pandas  # noqa: PLC0415 (deferred, pandas: optional, only for a data frame)
         except ImportError:
             raise UsageError("Sweep.to_frame needs pandas: pip install pandas (or use to_records)") from None
         return pandas.DataFrame.from_records(self.to_records())
