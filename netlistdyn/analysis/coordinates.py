@@ -246,20 +246,6 @@ def _to_x(rows_y: NDArray[np.float64], scale: NDArray[np.float64]) -> NDArray[np
     return rows
 
 
-def conserved_relations(model: StateSpaceModel) -> NDArray[np.float64]:
-    """Rows r with r A = 0 and r B = 0 that tie two or more states (see the module notes).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(k, nstates)`` over the model's states, each row scaled to a largest
-        entry of 1, sparse where possible (reduced row echelon form on the
-        balanced states).
-    """
-    scale = state_scale(model)
-    return _to_x(_relations_y(model, scale), scale)
-
-
 def _echelon(rows: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """Reduced row echelon form with partial pivoting, tiny entries set to zero."""
     m = rows.copy()
@@ -576,7 +562,7 @@ def parse_conditions(items: Sequence[str], netlist: Netlist, states: Sequence[st
 
     ``x(b1)`` and ``i(L1)`` can be both (an integrator state, an inductor
     current): they are taken as variables, so that the relations between
-    states (:func:`conserved_relations`) apply to them too.
+    states (the conserved relations of the module notes) apply to them too.
 
     Raises
     ------

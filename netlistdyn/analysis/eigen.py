@@ -96,11 +96,6 @@ class Mode:
         """τ = −1/Re λ (s); infinite when Re λ = 0, negative for growing modes."""
         return -1.0 / self.value.real if self.value.real else math.inf
 
-    @property
-    def frequency_hz(self) -> float:
-        """Damped oscillation frequency |Im λ|/(2π) (Hz)."""
-        return abs(self.value.imag) / (2 * math.pi)
-
 
 @dataclass(frozen=True)
 class EigenAnalysis:

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
 
 from netlistdyn.base.errors import NetlistError, UsageError
 from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
@@ -196,14 +195,6 @@ def _output_rows(
             )
     p = len(probes)
     return _matrix(c_t, (p, n)).tocsr(), _matrix(d_t, (p, len(mna.source_col))).tocsr()
-
-
-def initial_inputs(netlist: Netlist) -> NDArray[np.float64]:
-    """Each source's value at t = 0 (its transient waveform's, else its DC value)."""
-    out = np.empty(len(netlist.sources))
-    for j, elem in enumerate(netlist.sources):
-        out[j] = elem.value if elem.waveform is None else float(np.asarray(elem.waveform(0.0)))
-    return out
 
 
 def reduce_sources(

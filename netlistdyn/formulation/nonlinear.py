@@ -749,25 +749,6 @@ class NonlinearCircuit:
                 b[index] = x[nc + nl + len(self.charged_diodes) + k]
         return b
 
-    def junction_voltage(self, d: _Diode, q: float) -> float:
-        """The junction voltage (V) whose charge is ``q`` (C): Newton on q(v), monotonic."""
-        jn = d.junction
-        v = 0.0
-        vte = jn.vte
-        for _ in range(200):
-            i, g = junction_current(v, jn)
-            charge, cap = junction_charge(v, i, g, jn)
-            step = (charge - q) / cap
-            new = v - step
-            if new > v + 4 * vte and jn.tt > 0:  # exponential diffusion charge: step in the log
-                new = v + 4 * vte
-            if jn.cjo > 0 and new < v and new < -1e3 * jn.vj:
-                new = max(new, 2 * v - 1.0) if v < 0 else -1.0
-            if abs(new - v) <= 1e-15 * max(1.0, abs(v)):
-                return new
-            v = new
-        return v
-
     def nonlinear(
         self, z: NDArray[np.float64], t: float, mode: str
     ) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:

@@ -84,10 +84,6 @@ def _spec_of(name: str, values: str | float | Sequence[float | str]) -> tuple[in
     return sum(n for n, _ in parts), lambda: [v for _, make in parts for v in make()]
 
 
-def _value_list(name: str, values: str | float | Sequence[float | str]) -> list[float]:
-    return _spec_of(name, values)[1]()
-
-
 def expand_cases(
     items: Sequence[str] | Mapping[str, Any], max_cases: int = MAX_CASES
 ) -> list[dict[str, float]]:
