@@ -20,6 +20,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from netlistdyn.analysis.pencil import check_spectrum, quick_spectrum, structural_zeros
+from netlistdyn.analysis.views import eigen_html, eigen_latex, eigen_text
+from netlistdyn.base.formatting import Rendered
 from netlistdyn.statespace.model import Pencil
 
 EPS = float(np.finfo(float).eps)
@@ -97,8 +99,8 @@ class Mode:
         return -1.0 / self.value.real if self.value.real else math.inf
 
 
-@dataclass(frozen=True)
-class EigenAnalysis:
+@dataclass(frozen=True, repr=False)
+class EigenAnalysis(Rendered):
     """Result of :func:`analyze_eigenvalues`.
 
     Attributes
@@ -125,21 +127,8 @@ class EigenAnalysis:
     complete: bool
     warnings: tuple[str, ...] = ()
 
-    def __repr__(self) -> str:
-        """Verdict and a table of the modes (λ, ωn in rad/s, fn in Hz, ζ, τ)."""
-        from netlistdyn.analysis.views import eigen_text
-
-        return eigen_text(self)
-
-    def _repr_html_(self) -> str:
-        from netlistdyn.analysis.views import eigen_html
-
-        return eigen_html(self)
-
-    def _repr_latex_(self) -> str | None:
-        from netlistdyn.analysis.views import eigen_latex
-
-        return eigen_latex(self)
+    #: ``repr()``: the verdict and a table of the modes (λ, ωn in rad/s, fn in Hz, ζ, τ); HTML; LaTeX.
+    RENDERERS = (eigen_text, eigen_html, eigen_latex)
 
 
 def _eig(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

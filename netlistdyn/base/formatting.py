@@ -5,8 +5,8 @@ Every layer may use these; JSON output never does (it keeps full-precision numbe
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -119,3 +119,23 @@ def format_matrix(name: str, matrix: np.ndarray, rows: Sequence[str], cols: Sequ
     for label, row in zip(rows, cells, strict=True):
         lines.append(("  " + label).ljust(head) + "".join(x.rjust(width) for x in row))
     return lines
+
+
+class Rendered:
+    """A result that renders itself: ``repr()`` as text, ``_repr_html_`` and ``_repr_latex_`` for Jupyter.
+
+    A subclass names its three renderers, ``RENDERERS = (text, html, latex)`` (the LaTeX one may
+    return None: no LaTeX view), each taking the object. A dataclass subclass is declared with
+    ``repr=False``, so that its generated ``__repr__`` does not replace this one.
+    """
+
+    RENDERERS: ClassVar[tuple[Callable[[Any], str], Callable[[Any], str], Callable[[Any], str | None]]]
+
+    def __repr__(self) -> str:
+        return self.RENDERERS[0](self)
+
+    def _repr_html_(self) -> str:
+        return self.RENDERERS[1](self)
+
+    def _repr_latex_(self) -> str | None:
+        return self.RENDERERS[2](self)

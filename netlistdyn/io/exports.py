@@ -45,7 +45,7 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
         arrays["D1"] = model.D1_sparse
     labels = {"states": list(model.states), "inputs": list(model.inputs), "outputs": list(model.outputs)}
     if suffix == ".json":
-        matrices = {k: v.toarray().tolist() if dense else _coo_json(v) for k, v in arrays.items()}
+        matrices = {k: matrix_json(v, dense) for k, v in arrays.items()}
         doc = {"title": model.title, **labels, **matrices}
         write_bytes(path, (json.dumps(doc, indent=None if not dense else 1) + "\n").encode())
     elif suffix == ".npz":
@@ -77,7 +77,23 @@ def save_model(model: StateSpaceModel, path: str | Path) -> None:
         raise UsageError(f"--save {path}: unknown format {suffix!r}; use one of {', '.join(FORMATS)}")
 
 
-def _coo_json(matrix: sp.sparray) -> dict[str, Any]:
+def matrix_json(matrix: sp.sparray, dense: bool) -> Any:
+    """A matrix for a JSON document: nested lists of rows (``dense``), else COO triplets.
+
+    Parameters
+    ----------
+    matrix : scipy.sparse array
+        The matrix (its entries in the model's units).
+    dense : bool
+        Write every entry, row by row, instead of ``{"format": "coo", "shape", "row", "col", "data"}``.
+
+    Returns
+    -------
+    list or dict
+        What :func:`load_model` reads back.
+    """
+    if dense:
+        return matrix.toarray().tolist()
     coo = sp.coo_array(matrix)
     return {
         "format": "coo",

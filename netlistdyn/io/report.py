@@ -11,14 +11,13 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
-import scipy.sparse as sp
-
 from netlistdyn.analysis import control
 from netlistdyn.analysis.eigen import EigenAnalysis
 from netlistdyn.base.errors import UsageError
 from netlistdyn.base.formatting import element_value, eng, format_matrix
 from netlistdyn.devices.units import signal_units
 from netlistdyn.io.display import simulation_rows
+from netlistdyn.io.exports import matrix_json
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: Largest model whose matrices are printed in text and written as nested lists in JSON.
@@ -29,19 +28,6 @@ TEXT_MATRIX_LIMIT = 16
 
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
-
-
-def _matrix_json(matrix: sp.sparray, dense_ok: bool) -> Any:
-    if dense_ok:
-        return matrix.toarray().tolist()
-    coo = sp.coo_array(matrix)
-    return {
-        "format": "coo",
-        "shape": list(coo.shape),
-        "row": coo.row.tolist(),
-        "col": coo.col.tolist(),
-        "data": coo.data.tolist(),
-    }
 
 
 def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, Any]:
@@ -59,13 +45,13 @@ def model_dict(model: StateSpaceModel, eig: EigenAnalysis | None) -> dict[str, A
         "nstates": model.nstates,
         "ninputs": model.ninputs,
         "noutputs": model.noutputs,
-        "A": _matrix_json(model.A_sparse, dense_ok),
-        "B": _matrix_json(model.B_sparse, dense_ok),
-        "C": _matrix_json(model.C_sparse, dense_ok),
-        "D": _matrix_json(model.D_sparse, True),
+        "A": matrix_json(model.A_sparse, dense_ok),
+        "B": matrix_json(model.B_sparse, dense_ok),
+        "C": matrix_json(model.C_sparse, dense_ok),
+        "D": matrix_json(model.D_sparse, True),
     }
     if model.has_input_derivative:
-        doc["D1"] = _matrix_json(model.D1_sparse, True)
+        doc["D1"] = matrix_json(model.D1_sparse, True)
     info = model.info
     doc["order"] = info.order
     doc["excess_elements"] = [

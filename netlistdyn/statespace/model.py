@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from netlistdyn.base.errors import ControlDimension, UsageError
+from netlistdyn.base.formatting import Rendered
 from netlistdyn.circuit.netlist import Diagnostic
 from netlistdyn.statespace.views import model_html, model_latex, model_text
 
@@ -137,8 +138,8 @@ def _readonly(matrix: sp.sparray) -> np.ndarray:
     return dense
 
 
-@dataclass(frozen=True)
-class StateSpaceModel:
+@dataclass(frozen=True, repr=False)
+class StateSpaceModel(Rendered):
     """A linear time-invariant model with labels.
 
     Attributes
@@ -231,15 +232,9 @@ class StateSpaceModel:
         """True when some output depends on an input's derivative."""
         return self.D1_sparse.count_nonzero() > 0
 
-    def __repr__(self) -> str:
-        """Sizes, labels and (up to 16 states) the labelled matrices; never sparse-array dumps."""
-        return model_text(self)
-
-    def _repr_html_(self) -> str:
-        return model_html(self)
-
-    def _repr_latex_(self) -> str | None:
-        return model_latex(self)
+    #: ``repr()``: sizes, labels and (up to 16 states) the labelled matrices, never sparse-array
+    #: dumps; HTML; LaTeX.
+    RENDERERS = (model_text, model_html, model_latex)
 
     def to_scipy(self) -> object:
         """``scipy.signal.StateSpace`` of the model (see :func:`to_scipy`)."""
