@@ -20,16 +20,21 @@ from typing import TYPE_CHECKING, Any
 
 from netlistdyn.base.errors import ControlDimension, NetlistError, TopologyError, UsageError
 
-if TYPE_CHECKING:
-    from netlistdyn.api import compile, eigenvalues, simulate, sweep, symbolic, validate
-    from netlistdyn.statespace.model import StateSpaceModel
-    from netlistdyn.workflows.pipelines import (
+if TYPE_CHECKING:  # the same objects as __getattr__ gives (the API module re-exports the classes)
+    from netlistdyn.api import (
         NetlistSource,
         Simulation,
         SimulationError,
+        StateSpaceModel,
         Sweep,
         SweepCase,
         Validation,
+        compile,
+        eigenvalues,
+        simulate,
+        sweep,
+        symbolic,
+        validate,
     )
 
 #: The public names loaded on first use (PEP 562), by the module that defines them: ``import netlistdyn``
