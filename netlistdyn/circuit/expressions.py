@@ -254,37 +254,28 @@ def _is_exponent(text: str, start: int, end: int) -> bool:
     return re.fullmatch(r"(?:\d+\.?\d*|\.\d+)[eE]", text[start:end]) is not None
 
 
-def parse(text: str) -> Expression:
-    """Parse an expression into a tree (no recursion, linear time).
+class _ShuntingYard:
+    """The state of :func:`parse`: Dijkstra's shunting yard over the tokens, one at a time.
 
-    Parameters
-    ----------
-    text : str
-        The expression without braces, e.g. ``"1/(2*pi*f0*C1)"``.
-
-    Returns
-    -------
-    Expression
-
-    Raises
-    ------
-    ExpressionError
-        On a syntax error.
+    ``out`` holds the finished operands (tree nodes); ``ops`` the pending operators as
+    ``(kind, payload)`` with kinds ``"bin"``, ``"pre"``, ``"("``, ``"call"``, ``"?"`` and ``":"``;
+    ``arg_counts`` each open call's commas. ``expect_operand`` says which of :meth:`operand` and
+    :meth:`operator` the next token goes to.
     """
-    tokens = _tokenize(text)
-    if not tokens:
-        raise ExpressionError("empty expression")
-    out: list[Node] = []
-    # Operator stack entries: (kind, payload). kinds: "bin", "pre", "(", "call", "?", ":".
-    ops: list[tuple[str, object]] = []
-    arg_counts: list[int] = []
-    names: set[str] = set()
-    refs = False
-    expect_operand = True
-    at_start = True  # a sign here is "0 - x"
 
-    def reduce_top() -> None:
-        kind, payload = ops.pop()
+    def __init__(self) -> None:
+        self.out: list[Node] = []
+        self.ops: list[tuple[str, object]] = []
+        self.arg_counts: list[int] = []
+        self.names: set[str] = set()
+        self.refs = False
+        self.expect_operand = True
+        self.at_start = True  # a sign here is "0 - x"
+
+    def reduce_top(self) -> None:
+        """Apply the top operator to the operands it takes."""
+        out = self.out
+        kind, payload = self.ops.pop()
         if kind == "bin":
             if len(out) < 2:
                 raise ExpressionError(f"operator {payload} lacks an operand")
@@ -307,7 +298,9 @@ def parse(text: str) -> Expression:
         else:
             raise ExpressionError("unbalanced parentheses")
 
+    @staticmethod
     def precedence(entry: tuple[str, object]) -> int:
+        """How tightly a pending operator binds; -1 for the barriers ``(`` and a call."""
         kind, payload = entry
         if kind == "bin":
             return _BINARY[str(payload)]
@@ -317,102 +310,146 @@ def parse(text: str) -> Expression:
             return _TERNARY_PREC
         return -1  # "(" and "call" are barriers
 
-    def push_binary(op: str) -> None:
+    def push_binary(self, op: str) -> None:
+        """A binary operator: reduce what binds at least as tightly, then wait for its right side."""
         prec = _BINARY[op]
-        while ops and precedence(ops[-1]) >= prec:
-            reduce_top()
-        ops.append(("bin", op))
+        while self.ops and self.precedence(self.ops[-1]) >= prec:
+            self.reduce_top()
+        self.ops.append(("bin", op))
 
-    for kind, value in tokens:
-        if expect_operand:
-            if kind == "num":
-                out.append(("num", value))
-                expect_operand, at_start = False, False
-            elif kind == "ref":
-                out.append(("ref", *value))  # type: ignore[misc]
-                refs = True
-                expect_operand, at_start = False, False
-            elif kind == "name":
-                out.append(("name", value))
-                names.add(str(value))
-                expect_operand, at_start = False, False
-            elif value == "(":
-                ops.append(("(", None))
-                at_start = True
-            elif value in ("-", "+", "!"):
-                if at_start and value != "!":
-                    out.append(("num", 0.0))
-                    push_binary(str(value))
-                    at_start = False
-                else:
-                    ops.append(("pre", value))
+    def reduce_to_barrier(self) -> None:
+        """Reduce down to the innermost ``(`` or call."""
+        while self.ops and self.ops[-1][0] not in ("(", "call"):
+            self.reduce_top()
+
+    def operand(self, kind: str, value: object) -> None:
+        """A token where an operand is expected: a number, a name, a reference, ``(`` or a sign."""
+        if kind == "num":
+            self.out.append(("num", value))
+            self.expect_operand, self.at_start = False, False
+        elif kind == "ref":
+            self.out.append(("ref", *value))  # type: ignore[misc]
+            self.refs = True
+            self.expect_operand, self.at_start = False, False
+        elif kind == "name":
+            self.out.append(("name", value))
+            self.names.add(str(value))
+            self.expect_operand, self.at_start = False, False
+        elif value == "(":
+            self.ops.append(("(", None))
+            self.at_start = True
+        elif value in ("-", "+", "!"):
+            if self.at_start and value != "!":
+                self.out.append(("num", 0.0))
+                self.push_binary(str(value))
+                self.at_start = False
             else:
-                raise ExpressionError(f"unexpected {value!r}")
-            continue
-        # expecting an operator
+                self.ops.append(("pre", value))
+        else:
+            raise ExpressionError(f"unexpected {value!r}")
+
+    def operator(self, kind: str, value: object) -> None:
+        """A token where an operator is expected: ``(`` of a call, ``)``, ``,``, ``?``, ``:``, binary."""
         if kind != "op":
             raise ExpressionError(f"missing operator before {value!r}")
         if value == "(":
-            # a call: the operand just pushed must be a bare name
-            if not out or out[-1][0] != "name":
-                raise ExpressionError("unexpected '('")
-            fname = out.pop()[1]
-            names.discard(str(fname))
-            ops.append(("call", fname))
-            arg_counts.append(0)
-            expect_operand, at_start = True, True
-            continue
-        if value == ")":
-            while ops and ops[-1][0] not in ("(", "call"):
-                reduce_top()
-            if not ops:
-                raise ExpressionError("unbalanced ')'")
-            kind_top, payload = ops.pop()
-            if kind_top == "call":
-                count = arg_counts.pop() + 1
-                args = tuple(out[-count:])
-                del out[-count:]
-                out.append(("call", payload, args))
-            continue
-        if value == ",":
-            while ops and ops[-1][0] not in ("(", "call"):
-                reduce_top()
-            if not ops or ops[-1][0] != "call":
+            self._call()
+        elif value == ")":
+            self._close()
+        elif value == ",":
+            self.reduce_to_barrier()
+            if not self.ops or self.ops[-1][0] != "call":
                 raise ExpressionError("',' outside a function call")
-            arg_counts[-1] += 1
-            expect_operand, at_start = True, True
-            continue
-        if value == "?":
-            while ops and precedence(ops[-1]) > _TERNARY_PREC:
-                reduce_top()
-            ops.append(("?", None))
-            expect_operand, at_start = True, True
-            continue
-        if value == ":":
-            while ops and ops[-1][0] != "?":
-                if ops[-1][0] in ("(", "call"):
-                    raise ExpressionError("':' without '?'")
-                reduce_top()
-            if not ops:
+            self.arg_counts[-1] += 1
+            self.expect_operand, self.at_start = True, True
+        elif value == "?":
+            while self.ops and self.precedence(self.ops[-1]) > _TERNARY_PREC:
+                self.reduce_top()
+            self.ops.append(("?", None))
+            self.expect_operand, self.at_start = True, True
+        elif value == ":":
+            self._colon()
+        elif value in _BINARY:
+            self.push_binary(str(value))
+            self.expect_operand, self.at_start = True, False
+        else:
+            raise ExpressionError(f"unexpected {value!r}")
+
+    def _call(self) -> None:
+        """``(`` after an operand: a call, whose operand just pushed must be a bare name."""
+        if not self.out or self.out[-1][0] != "name":
+            raise ExpressionError("unexpected '('")
+        fname = self.out.pop()[1]
+        self.names.discard(str(fname))
+        self.ops.append(("call", fname))
+        self.arg_counts.append(0)
+        self.expect_operand, self.at_start = True, True
+
+    def _close(self) -> None:
+        """``)``: reduce to its ``(`` or call; a call takes its arguments."""
+        self.reduce_to_barrier()
+        if not self.ops:
+            raise ExpressionError("unbalanced ')'")
+        kind_top, payload = self.ops.pop()
+        if kind_top == "call":
+            count = self.arg_counts.pop() + 1
+            args = tuple(self.out[-count:])
+            del self.out[-count:]
+            self.out.append(("call", payload, args))
+
+    def _colon(self) -> None:
+        """``:``: reduce to its ``?``, which becomes the ternary's ``:``."""
+        while self.ops and self.ops[-1][0] != "?":
+            if self.ops[-1][0] in ("(", "call"):
                 raise ExpressionError("':' without '?'")
-            ops[-1] = (":", None)
-            expect_operand, at_start = True, True
-            continue
-        if value in _BINARY:
-            push_binary(str(value))
-            expect_operand, at_start = True, False
-            continue
-        raise ExpressionError(f"unexpected {value!r}")
-    if expect_operand:
-        # "f()" leaves a call with no argument: allowed only right after "("
-        raise ExpressionError("expression ends too early")
-    while ops:
-        if ops[-1][0] in ("(", "call"):
-            raise ExpressionError("missing ')'")
-        reduce_top()
-    if len(out) != 1:
-        raise ExpressionError("malformed expression")
-    return Expression(text, out[0], frozenset(names), refs)
+            self.reduce_top()
+        if not self.ops:
+            raise ExpressionError("':' without '?'")
+        self.ops[-1] = (":", None)
+        self.expect_operand, self.at_start = True, True
+
+    def finish(self) -> Node:
+        """The tree, once every token is in: the pending operators reduced."""
+        if self.expect_operand:
+            # "f()" leaves a call with no argument: allowed only right after "("
+            raise ExpressionError("expression ends too early")
+        while self.ops:
+            if self.ops[-1][0] in ("(", "call"):
+                raise ExpressionError("missing ')'")
+            self.reduce_top()
+        if len(self.out) != 1:
+            raise ExpressionError("malformed expression")
+        return self.out[0]
+
+
+def parse(text: str) -> Expression:
+    """Parse an expression into a tree (no recursion, linear time).
+
+    Parameters
+    ----------
+    text : str
+        The expression without braces, e.g. ``"1/(2*pi*f0*C1)"``.
+
+    Returns
+    -------
+    Expression
+
+    Raises
+    ------
+    ExpressionError
+        On a syntax error.
+    """
+    tokens = _tokenize(text)
+    if not tokens:
+        raise ExpressionError("empty expression")
+    yard = _ShuntingYard()
+    for kind, value in tokens:
+        if yard.expect_operand:
+            yard.operand(kind, value)
+        else:
+            yard.operator(kind, value)
+    tree = yard.finish()
+    return Expression(text, tree, frozenset(yard.names), yard.refs)
 
 
 @dataclass(frozen=True, slots=True)
