@@ -759,8 +759,6 @@ def voltage_coordinates(netlist: Netlist) -> list[str]:
     list of str
         One variable per state, in state order.
     """
-    from netlistdyn.formulation.compile import compile_netlist
-
     by_name = {e.name.lower(): e for e in netlist.elements}
     variables = []
     for state in compile_netlist(netlist, []).states:

@@ -27,7 +27,7 @@ import os
 import re
 import stat
 from collections import ChainMap
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, MutableMapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -54,6 +54,7 @@ from netlistdyn.circuit.netlist import (
 from netlistdyn.circuit.waveforms import Am, Exp, Pulse, Pwl, Random, Sffm, Sin, Waveform, scaled
 from netlistdyn.devices.cards import CardLine, canonical_node, is_expr, short, unwrap
 from netlistdyn.devices.mechanics import KEYWORDS, resolve_rods
+from netlistdyn.devices.models import DISPLACEMENT, fold
 from netlistdyn.devices.planar import PLANAR_KEYWORDS, PlanarCard, build_planar
 from netlistdyn.devices.registry import REGISTRY, Registry
 
@@ -515,6 +516,12 @@ _Functions = dict[str, tuple[tuple[str, ...], Expression]]
 _NUMBER_START = frozenset("0123456789.+-")
 
 
+def _chain(first: MutableMapping[str, float], *rest: Mapping[str, float]) -> Mapping[str, float]:
+    """Look-ups in ``first``, then in each of ``rest``: a ChainMap, which writes only to ``first``."""
+    # typeshed asks every map of a ChainMap to be mutable; only the first is ever written
+    return ChainMap(first, *rest)  # type: ignore[arg-type]
+
+
 def _value_expression(expr: str) -> str:
     return unwrap(expr.strip())
 
@@ -581,7 +588,7 @@ def evaluate_definitions(
             parsed[key] = parse(text)
         except ExpressionError as exc:
             raise NetlistError(f".param {definition.name}: {exc}", definition.loc) from None
-    chain: Mapping[str, float] = ChainMap(values, scope) if scope else values
+    chain: Mapping[str, float] = _chain(values, scope) if scope else values
     state: dict[str, int] = {}  # 1: in progress, 2: done
     for root in parsed:
         if root in values:
@@ -1479,10 +1486,10 @@ def _expand_instance(
     )
     scope: Mapping[str, float] = values.params
     if local_defs or overrides:
-        base: Mapping[str, float] = ChainMap(overrides, values.params) if overrides else values.params
+        base: Mapping[str, float] = _chain(overrides, values.params) if overrides else values.params
         local = evaluate_definitions(local_defs, base, values.functions, None)
         local.update(overrides)
-        scope = ChainMap(local, values.params)  # type: ignore[arg-type]
+        scope = _chain(local, values.params)
     outer = [_map_node(canonical_node(n), prefix, port_map, build.globals_) for n in nodes]
     inner_prefix = f"{prefix}.{name}" if prefix else name
     inner_ports = dict(zip(sub.ports, outer, strict=True))
@@ -1570,7 +1577,6 @@ def _rename(element: Element, prefix: str, port_map: dict[str, str], globals_: f
 
     expression = element.expression
     if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT, *STORAGE_KINDS) and expression is not None:
-        from netlistdyn.devices.models import DISPLACEMENT, fold
 
         def scoped(kind: str, n: str) -> str:
             if kind == "v":
@@ -1638,8 +1644,8 @@ def parse_text(
     functions: _Functions = {}
     for line in lines:
         if line.text.split(None, 1)[0].lower() == ".func":
-            fname, formals, body = _parse_func(line)
-            functions[fname] = (formals, body)
+            fname, formals, expression = _parse_func(line)
+            functions[fname] = (formals, expression)
     if any(line.text[:3].lower() == ".if" for line in lines):
         outside = [
             _Definition(n, e, line.loc)

@@ -184,7 +184,8 @@ def output_grid(
     if corners.size:
         times = _merged(times, corners, tstop)
     step = float(np.max(np.diff(times))) if times.size > 1 else tstep
-    where = netlist.tran.loc if refine and netlist.tran is not None else SourceLocation(netlist.path, 0)
+    tran_loc = netlist.tran.loc if refine and netlist.tran is not None else None
+    where = tran_loc if tran_loc is not None else SourceLocation(netlist.path, 0)
     return Grid(times, step, tuple(Diagnostic(where, note) for note in notes))
 
 
