@@ -19,6 +19,9 @@ import logging
 import math
 import os
 import re
+import shutil
+import subprocess
+import tempfile
 import time
 from collections.abc import Sequence
 from ctypes.util import find_library
@@ -28,9 +31,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from netlistdyn.base.processes import run_in_child, run_in_child_status
+from netlistdyn.base.processes import run_in_child, run_in_child_status, run_program
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 from netlistdyn.circuit.probes import Probe
+from netlistdyn.devices.models import DISPLACEMENT
 from netlistdyn.devices.registry import REGISTRY
 from netlistdyn.devices.traits import SpiceText
 
@@ -198,7 +202,7 @@ def build_circuit(
     -------
     PySpice.Spice.Netlist.Circuit
     """
-    from PySpice.Spice.Netlist import Circuit
+    from PySpice.Spice.Netlist import Circuit  # noqa: PLC0415 (deferred, PySpice: optional spice extra)
 
     circuit = Circuit(netlist.title or "netlistdyn")
     sensed = {p.element for p in probes if p.kind == "i" and not _has_branch(netlist.element(p.element))}
@@ -231,8 +235,6 @@ def _node(name: str) -> Any:
 
 def _displaced_nodes(netlist: Netlist) -> list[str]:
     """Nodes whose displacement x(n) a behavioural expression reads, in order of appearance."""
-    from netlistdyn.devices.models import DISPLACEMENT
-
     found: dict[str, None] = {}
     for element in netlist.elements:
         if element.kind in (Kind.BVOLTAGE, Kind.BCURRENT) and element.expression:
@@ -277,8 +279,6 @@ def _add_element(
 
 def _expression_text(text: str, netlist: Netlist) -> str:
     """A folded expression in ngspice's names (elements, ground, displacement integrators)."""
-    from netlistdyn.devices.models import DISPLACEMENT
-
     text = re.sub(
         r"i\(" + re.escape(DISPLACEMENT) + r"([^)]+)\)",
         lambda m: f"v({_displacement_node(m.group(1))})",
@@ -382,9 +382,9 @@ def tolerate_notes(simulator: Any) -> None:
     """
     ngspice = getattr(simulator, "ngspice", None)
     original = getattr(ngspice, "exec_command", None)
-    if original is None:
+    if ngspice is None or original is None:
         return
-    from PySpice.Spice.NgSpice.Shared import NgSpiceCommandError
+    from PySpice.Spice.NgSpice.Shared import NgSpiceCommandError  # noqa: PLC0415 (deferred, PySpice: optional spice extra)
 
     def exec_command(command: str, join_lines: bool = True) -> Any:
         try:
@@ -473,8 +473,6 @@ def run_transient(
 
 def batch_missing() -> str | None:
     """``None`` when batch ngspice can run (the ``ngspice`` program, PySpice to write the deck)."""
-    import shutil
-
     if importlib.util.find_spec("PySpice") is None or shutil.which("ngspice") is None:
         return INSTALL_HINT
     return None
@@ -573,10 +571,6 @@ def run_batch(
         ``status`` "ok", "failed", "timeout" (wall or CPU time ran out: the message says
         which) or "unusable"; ``seconds`` is the wall time, ``cpu`` the CPU time.
     """
-    import shutil
-    import tempfile
-
-    from netlistdyn.base.processes import run_program
 
     binary = shutil.which("ngspice")
     if binary is None:
@@ -779,10 +773,6 @@ def run_original(
     -------
     OriginalRun
     """
-    import re
-    import shutil
-    import subprocess
-    import tempfile
 
     if separate and frequencies:
         first = run_original(path, sources, frequencies[:1], params, timeout, options=options)
@@ -811,10 +801,10 @@ def run_original(
         cmds = [f"alterparam {k}={v:.17g}" for k, v in (params or {}).items()]
         if params:
             cmds.append("reset")
-        for name, dc, ac in sources:
+        for name, dc, acmag in sources:
             if dc is not None:
                 cmds.append(f"alter @{name}[dc]={dc:.17g}")
-            cmds.append(f"alter @{name}[acmag]={ac:.17g}")
+            cmds.append(f"alter @{name}[acmag]={acmag:.17g}")
         if options:
             cmds.append(f"option {options}")
         cmds += ["set filetype=ascii", *(("op", f"write {tmp}/op.raw") if with_op else ())]
