@@ -33,11 +33,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+from scipy.linalg import matrix_balance, qr
 
 from netlistdyn.base.errors import UsageError
+from netlistdyn.base.formatting import format_matrix
 from netlistdyn.base.values import parse_number
 from netlistdyn.circuit.netlist import GROUND, Kind, Netlist
 from netlistdyn.circuit.probes import default_probes, parse_probe, parse_probes
+from netlistdyn.formulation.compile import compile_netlist
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: Relative size below which an entry of a row counts as zero (rows come from
@@ -126,8 +129,6 @@ def compile_with(
     shown : tuple of str
         Labels of the outputs to show.
     """
-    from netlistdyn.formulation.compile import compile_netlist
-
     probes = parse_probes(outputs, netlist) if outputs else default_probes(netlist)
     shown = tuple(dict.fromkeys(p.name for p in probes))
     wanted = list(shown)
@@ -205,7 +206,6 @@ def state_scale(model: StateSpaceModel) -> NDArray[np.float64]:
     n = model.nstates
     if n == 0 or n > RELATIONS_LIMIT:
         return np.ones(n)
-    from scipy.linalg import matrix_balance
 
     _, (scale, _) = matrix_balance(model.A, permute=False, separate=True)
     return np.asarray(scale, dtype=float)
@@ -486,8 +486,6 @@ def _echelon_null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
     gives e_j − (rows[:, P]⁻¹ rows[:, j]) on P. Free columns other than j stay
     exactly zero (an SVD basis would mix every column with rounding).
     """
-    from scipy.linalg import qr
-
     n = rows.shape[1]
     k = rows.shape[0]
     _, _, perm = qr(rows, pivoting=True, mode="economic")
@@ -519,8 +517,6 @@ def _null_space(rows: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def change_text(change: CoordinateChange) -> str:
     """The report block: T, its condition number and the relations imposed."""
-    from netlistdyn.base.formatting import format_matrix
-
     lines = [f"coordinates: z = T x, cond(T) = {change.condition:.3g}"]
     lines += format_matrix("T", change.T, change.coordinates, change.original.states)
     for r in change.relations:

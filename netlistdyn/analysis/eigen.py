@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import mpmath as mp
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
@@ -178,8 +179,6 @@ def _extended_precision(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     extended precision (for a defective eigenvalue yᵀx cancels to ~1e-48,
     which double precision cannot see).
     """
-    import mpmath as mp
-
     n = a.shape[0]
     # Balancing (a diagonal similarity by powers of 2: exact) shrinks ‖A‖, the computation's own
     # rounding level, without changing eigenvalues or componentwise condition numbers.
@@ -295,9 +294,9 @@ def _dense_modes(a: np.ndarray, pencil: Pencil | None = None) -> tuple[list[Mode
     if quick is not None:
         # Small and well conditioned: n distinct roots of the circuit equations, verified in double
         # precision with bars far below TRUST_RTOL (no 40-digit Newton needed).
-        for k, result in enumerate(quick):
-            w[k], abs_err[k] = result.value, result.abs_error
-            re_err[k], im_err[k] = result.re_error, result.im_error
+        for k, quick_result in enumerate(quick):
+            w[k], abs_err[k] = quick_result.value, quick_result.abs_error
+            re_err[k], im_err[k] = quick_result.re_error, quick_result.im_error
         checked[:] = True
         method += (
             "; each checked and refined against the circuit equations in double precision "

@@ -792,7 +792,8 @@ def _plan(
         # QZ works on the pencil itself, so its count is the multiplicity where it saw the root;
         # otherwise A's reliable starts that reached it.
         count = len(qs) if qs else max(len(kept), 1)
-        head = min([from_a[k] for k in ks if from_a[k] is not None] + qs, key=lambda r: r.abs_error)
+        starts = [r for r in (from_a[k] for k in ks) if r is not None]
+        head = min(starts + qs, key=lambda r: r.abs_error)
         if count > 1 and head.abs_error <= DEFECTIVE_RTOL * abs(head.value):
             # Several starts reached this root and its bar is first-order tight, which a defective
             # root's never is (it moves by eps^(1/m)): it counts more than once only if the circuit
@@ -1054,7 +1055,6 @@ def quick_spectrum(pencil: Pencil, values: np.ndarray) -> list[CheckedEigenvalue
     if len(rows) > QUICK_PENCIL:
         return None
     G, E, D = G[np.ix_(rows, cols)], E[np.ix_(rows, cols)], D[np.ix_(rows, cols)]
-    from scipy.sparse.csgraph import structural_rank
 
     if G.shape[0] == 0 or structural_rank(sp.csr_matrix(G != 0)) < G.shape[0]:
         return None  # zeros the topology guarantees: the full check counts them

@@ -18,7 +18,10 @@ from numpy.typing import NDArray
 
 from netlistdyn.base.atomic import write_bytes
 from netlistdyn.base.errors import UsageError
+from netlistdyn.base.formatting import eng_formatter
 from netlistdyn.base.optional import require
+from netlistdyn.base.values import parse_number
+from netlistdyn.frontend.parser import read_lines
 from netlistdyn.io.bode import bode
 
 
@@ -73,8 +76,6 @@ def save_figure(fig: Any, path: str) -> None:
 
 
 def _eng_axis(axis: Any, unit: str) -> None:
-    from netlistdyn.base.formatting import eng_formatter
-
     axis.set_major_formatter(eng_formatter(unit))
 
 
@@ -168,12 +169,16 @@ def sweep_plot(cases: Any, path: str) -> None:
     imaginary axis).
     """
     plt = _figure()
-    from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.colors import LogNorm, Normalize  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
     good = [c for c in cases if "eigenvalues" in c]
     name = next(iter(good[0]["params"]), None) if good else None
-    values = np.array([c["params"][name] for c in good], dtype=float) if name else np.arange(len(good))
+    values = (
+        np.array([c["params"][name] for c in good], dtype=float)
+        if name
+        else np.arange(len(good), dtype=float)
+    )
     positive = values.size and values.min() > 0
     spread = values.max() / values.min() if positive else 1.0
     norm = (
@@ -226,7 +231,7 @@ def sweep_plot(cases: Any, path: str) -> None:
 
 def _sparse_symlog_locator(linthresh: float, step: int) -> Any:
     """A locator with ticks at 0 and ±10^k for every ``step``-th decade from ``linthresh``."""
-    from matplotlib.ticker import Locator
+    from matplotlib.ticker import Locator  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
     class SparseSymlog(Locator):
         def __call__(self) -> Any:
@@ -248,8 +253,6 @@ def _sparse_symlog_locator(linthresh: float, step: int) -> Any:
 
 def ac_range(netlist: Any) -> tuple[float, float] | None:
     """``(fstart, fstop)`` in Hz from the netlist's ``.ac`` line, if it has a usable one."""
-    from netlistdyn.base.values import parse_number
-    from netlistdyn.frontend.parser import read_lines
 
     path = getattr(netlist, "path", "")
     try:

@@ -15,12 +15,28 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse.linalg as spla
 
 from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.base.values import parse_number
 from netlistdyn.circuit.netlist import Kind, Netlist
 from netlistdyn.circuit.sources import SourceValues, source_waveform
+from netlistdyn.circuit.waveforms import check_breakpoints
 from netlistdyn.devices.registry import REGISTRY
+from netlistdyn.devices.units import signal_units
 from netlistdyn.formulation.descriptor import DescriptorSystem, assemble, supports
+from netlistdyn.formulation.formulate import state_name, tree_candidates
+from netlistdyn.simulation.foh import Horizon
+from netlistdyn.simulation.initial import descriptor_start, uses_uic
+from netlistdyn.simulation.transient import (
+    CF_CHECK_DEGREE,
+    CF_DEGREE,
+    DEFAULT_METHOD,
+    DEFAULT_ORDER,
+    _lu,
+    run_transient,
+)
+from netlistdyn.workflows.pipelines import Simulation
 
 if TYPE_CHECKING:
     from netlistdyn.simulation.foh import Horizon
@@ -95,8 +111,6 @@ def simulate_descriptor_wanted(
 
 
 def _initial_unknowns(system: DescriptorSystem, ics: Sequence[str]) -> np.ndarray | None:
-    from netlistdyn.base.values import parse_number
-
     if not ics:
         return None
     x0 = np.zeros(system.size)
@@ -122,8 +136,6 @@ def descriptor_horizon(netlist: Netlist, tstop: float | None, tstep: float | Non
     UsageError
         A non-positive ``tstop``/``tstep``, or neither a ``--tstop`` nor a ``.tran``.
     """
-    from netlistdyn.simulation.foh import Horizon
-
     for value, flag in ((tstop, "--tstop"), (tstep, "--tstep")):
         if value is not None and not value > 0:
             raise UsageError(f"{flag} must be positive")
@@ -171,18 +183,6 @@ def simulate_large(
     netlistdyn.api.Simulation
         With the horizon; ``stats`` holds the step counts and CPU seconds.
     """
-    from netlistdyn.circuit.sources import source_waveform
-    from netlistdyn.circuit.waveforms import check_breakpoints
-    from netlistdyn.devices.units import signal_units
-    from netlistdyn.simulation.initial import uses_uic
-    from netlistdyn.simulation.transient import (
-        CF_CHECK_DEGREE,
-        CF_DEGREE,
-        DEFAULT_METHOD,
-        DEFAULT_ORDER,
-        run_transient,
-    )
-    from netlistdyn.workflows.pipelines import Simulation
 
     horizon = descriptor_horizon(netlist, tstop, tstep)
     count = round(horizon.tstop / horizon.tstep)
@@ -198,8 +198,6 @@ def simulate_large(
     x0 = _initial_unknowns(system, ics)
     start = "given unknowns"
     if x0 is None:  # the netlist's own IC= and .ic, by ngspice's rules (netlistdyn.initial)
-        from netlistdyn.simulation.initial import descriptor_start
-
         u0 = np.array([float(np.asarray(w(np.array([0.0])))[0]) for w in waves])
         x0, start, warnings = descriptor_start(netlist, system, outputs, u0)
         if warn is not None:
@@ -241,8 +239,6 @@ def analyze_large(netlist: Netlist, outputs: Sequence[str] | None) -> dict[str, 
     the descriptor system, and its slowest modes (shift-invert Arnoldi at 0
     on the pencil, which needs one sparse LU of ``A``).
     """
-    from netlistdyn.formulation.formulate import state_name, tree_candidates
-
     system = assemble(netlist, outputs)
     circuit, tree = tree_candidates(netlist)[0]
     states = [
@@ -271,10 +267,6 @@ def analyze_large(netlist: Netlist, outputs: Sequence[str] | None) -> dict[str, 
 
 def slowest_modes(system: DescriptorSystem, count: int = 6) -> np.ndarray:
     """The finite eigenvalues of ``(A, E)`` nearest 0 (1/s), by Arnoldi on ``A⁻¹E``."""
-    import scipy.sparse.linalg as spla
-
-    from netlistdyn.simulation.transient import _lu
-
     if system.dynamic <= count + 1:
         return np.zeros(0, dtype=complex)
     try:

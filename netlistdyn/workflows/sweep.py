@@ -24,11 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from netlistdyn.base.errors import NetlistError, UsageError
+from netlistdyn.analysis.eigen import analyze_eigenvalues
+from netlistdyn.base.errors import NetlistError, SourceLocation, UsageError
 from netlistdyn.base.optional import missing
 from netlistdyn.base.processes import detached_worker, end_workers
 from netlistdyn.base.values import parse_number
-from netlistdyn.formulation.compile import Formulation
+from netlistdyn.formulation.compile import Formulation, compile_netlist, formulate, recompile
+from netlistdyn.frontend.parser import parse_text
 
 #: Most cases a sweep runs unless ``--max-cases`` raises it (each case is a compile and an
 #: eigenvalue analysis; 100 000 cases of Circuit 2 keep a 2-core machine busy for minutes).
@@ -144,8 +146,6 @@ class SweepSource:
     @classmethod
     def read(cls, path: str) -> SweepSource:
         """Read ``path`` (a ``NetlistError`` names it when it cannot be read)."""
-        from netlistdyn.base.errors import SourceLocation
-
         try:
             with open(path, encoding="utf-8") as handle:
                 return cls(path, handle.read())
@@ -158,8 +158,6 @@ class SweepSource:
 
     def parse(self, params: Mapping[str, float]) -> Any:
         """The netlist with ``params`` applied."""
-        from netlistdyn.frontend.parser import parse_text
-
         return parse_text(self.text, self.path, params)
 
 
@@ -175,8 +173,6 @@ def _one_case(
     Without a compiled case (none compiled) the case is compiled from
     scratch, which reports its own error.
     """
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.formulation.compile import compile_netlist, recompile
 
     if isinstance(source, str):
         source = SweepSource.read(source)
@@ -199,8 +195,6 @@ def _first_formulation(
     source: SweepSource, cases: list[dict[str, float]], outputs: list[str] | None
 ) -> Formulation | None:
     """Compile the first case that compiles (its normal tree serves every case)."""
-    from netlistdyn.formulation.compile import formulate
-
     for params in cases:
         try:
             return formulate(source.parse(params), outputs)
@@ -223,7 +217,7 @@ def track(
     values = np.array([complex(re, im) for re, im in current], dtype=complex)
     order = sorted(range(values.size), key=lambda k: (-values[k].real, -values[k].imag))
     if previous is not None and len(previous) == values.size and values.size:
-        from scipy.optimize import linear_sum_assignment
+        from scipy.optimize import linear_sum_assignment  # noqa: PLC0415 (deferred, scipy.optimize: 0.15 s of CPU to import)
 
         before = np.array([complex(re, im) for re, im in previous], dtype=complex)
         cost = np.abs(before[:, None] - values[None, :])
@@ -380,7 +374,7 @@ def _run_on_dask(
 ) -> Iterator[Any]:
     """The same tasks on Dask (each call's arguments travel with it, ``shared`` is broadcast)."""
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client, LocalCluster  # noqa: PLC0415 (deferred, dask: optional dask extra)
     except ImportError:
         raise missing("dask.distributed", f"--scheduler {scheduler}") from None
     if scheduler == "dask":
