@@ -14,14 +14,18 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import click
 
+from netlistdyn.base import progress
 from netlistdyn.base.atomic import STDOUT, check_writable, install_signal_cleanup, write_text
 from netlistdyn.base.caught_warnings import CaughtWarnings
-from netlistdyn.base.errors import ControlDimension, NetlistError, UsageError
+from netlistdyn.base.errors import ControlDimension, NetlistError, SourceLocation, UsageError
 from netlistdyn.base.optional import require
+from netlistdyn.base.processes import cpu_seconds
 from netlistdyn.base.values import parse_number, split_number
 
 METHOD_CHOICES = ("auto", "exact", "rational", "krylov", "RK45", "DOP853", "Radau", "BDF", "LSODA")
@@ -143,7 +147,7 @@ def check_outputs(inputs: tuple[str, ...] = (), **paths: str | None) -> None:
         if key in ("plot", "bode", "animate"):  # before any work: the figure needs matplotlib
             require("matplotlib", option)
         if key == "save":
-            from netlistdyn.io.exports import FORMATS
+            from netlistdyn.io.exports import FORMATS  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             suffix = os.path.splitext(path)[1].lower()
             if suffix not in FORMATS:
@@ -166,7 +170,7 @@ def check_outputs(inputs: tuple[str, ...] = (), **paths: str | None) -> None:
 
 def input_files(inputs: tuple[str, ...]) -> list[str]:
     """The files the command reads: each input, and the ``.include``/``.lib`` files of netlists."""
-    from netlistdyn.frontend.parser import netlist_files
+    from netlistdyn.frontend.parser import netlist_files  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     files: list[str] = []
     for source in inputs:
@@ -189,7 +193,7 @@ def same_file(a: str, b: str) -> bool:
 
 def parse_netlist(netlist: str, overrides: dict[str, float] | None = None, text: str | None = None) -> Any:
     """Parse a netlist file, or standard input for ``-`` (``text``: stdin already read)."""
-    from netlistdyn.frontend.parser import parse_file, parse_text
+    from netlistdyn.frontend.parser import parse_file, parse_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     if netlist != DASH:  # "-": standard input
         return parse_file(netlist, overrides)
@@ -205,7 +209,7 @@ def stdin_text() -> str:
     ctx = click.get_current_context(silent=True)
     if ctx is not None and "netlistdyn.stdin" in ctx.meta:
         return str(ctx.meta["netlistdyn.stdin"])
-    from netlistdyn.frontend.parser import decode
+    from netlistdyn.frontend.parser import decode  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     try:
         data = click.get_binary_stream("stdin").read()
@@ -218,8 +222,6 @@ def stdin_text() -> str:
 
 
 def _stdin_loc() -> Any:
-    from netlistdyn.base.errors import SourceLocation
-
     return SourceLocation(STDIN_NAME, 0)
 
 
@@ -372,17 +374,17 @@ def load_and_compile(
     A nonlinear netlist is replaced by its linearisation at the operating
     point (``--at`` values moved), which is the netlist returned.
     """
-    from netlistdyn.formulation.compile import compile_netlist
+    from netlistdyn.formulation.compile import compile_netlist  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     parsed = parse_netlist(netlist, parse_param_overrides(params))
     if parsed.planar:  # a planar mechanism: the exact Jacobians at its equilibrium
-        from netlistdyn.workflows.planar import planar_linear_model
+        from netlistdyn.workflows.planar import planar_linear_model  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         model = planar_linear_model(parsed, outputs, parse_param_overrides(at, "--at"))
         _print_warnings(model.info.warnings)
         return parsed, model
     if parsed.is_nonlinear:
-        from netlistdyn.formulation.operating import linearised
+        from netlistdyn.formulation.operating import linearised  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         parsed, outputs = linearised(parsed, outputs, parse_param_overrides(at, "--at"))
     elif at:
@@ -407,12 +409,12 @@ def load_prepared(
 
     See :mod:`netlistdyn.coordinates`; ``extra`` are hidden outputs a view needs.
     """
-    from netlistdyn.analysis.coordinates import prepare
+    from netlistdyn.analysis.coordinates import prepare  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     if parsed is None:
         parsed = parse_netlist(netlist, parse_param_overrides(params))
     if parsed.planar:
-        from netlistdyn.workflows.planar import prepare_planar
+        from netlistdyn.workflows.planar import prepare_planar  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         planar = prepare_planar(parsed, list(outputs) or None, coordinates, ics, extra)
         _print_warnings(planar.full.info.warnings)
@@ -514,8 +516,8 @@ def analyze(
     out: str | None,
 ) -> None:
     """Compile NETLIST to x' = Ax + Bu, y = Cx + Du and analyse its eigenvalues."""
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.io.report import (
+    from netlistdyn.analysis.eigen import analyze_eigenvalues  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+    from netlistdyn.io.report import (  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
         canonical_dict,
         canonical_forms,
         canonical_text,
@@ -530,7 +532,7 @@ def analyze(
 
     def body() -> int:
         check_outputs((netlist,), bode=bode, save=save, out=out)
-        from netlistdyn.workflows.large import descriptor_wanted
+        from netlistdyn.workflows.large import descriptor_wanted  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         early = parse_netlist(netlist, parse_param_overrides(params))
         if descriptor_wanted(early, "auto"):  # large circuit: sparse descriptor form
@@ -544,8 +546,6 @@ def analyze(
                 ("--coordinates", coordinates is not None),
             )
             return _analyze_descriptor(early, outputs, fmt, out, [f for f, on in explicit_only if on])
-
-        from netlistdyn.base import progress
 
         stages = contextlib.ExitStack()
         bar = stages.enter_context(progress.bar("analyze", 2, quiet, unit="stage"))
@@ -570,12 +570,12 @@ def analyze(
                 raise UsageError(
                     "--symbolic is not available for planar mechanisms (A, B are numeric Jacobians)"
                 )
-            from netlistdyn.formulation.symbolic import symbolic_model
+            from netlistdyn.formulation.symbolic import symbolic_model  # noqa: PLC0415 (deferred, imports sympy: optional symbolic extra)
 
             keep = None if symbols is None else [n.strip() for n in symbols.split(",") if n.strip()]
             sym = symbolic_model(parsed, list(outputs) or list(model.outputs), keep)
         if minimal or control_report:
-            from netlistdyn.analysis import control
+            from netlistdyn.analysis import control  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             if model.nstates > control.CONTROL_STATE_LIMIT:
                 raise UsageError(
@@ -604,14 +604,14 @@ def analyze(
         stages.close()
         forms = canonical_forms(model) if canonical else None
         if save:
-            from netlistdyn.io.exports import save_model
+            from netlistdyn.io.exports import save_model  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             save_model(model, save)
         response = None
         if bode:
-            from netlistdyn.io.bode import bode as frequency_data
-            from netlistdyn.io.bode import bode_csv
-            from netlistdyn.io.plots import ac_range, bode_plot
+            from netlistdyn.io.bode import bode as frequency_data  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+            from netlistdyn.io.bode import bode_csv  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+            from netlistdyn.io.plots import ac_range, bode_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             response = frequency_data(model, ac_range(parsed))
             if bode.lower().endswith(".csv"):
@@ -622,7 +622,7 @@ def analyze(
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist
             if response is not None:
-                from netlistdyn.io.bode import bode_dict
+                from netlistdyn.io.bode import bode_dict  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 doc["frequency_response"] = bode_dict(response)
             if control_report:
@@ -634,14 +634,14 @@ def analyze(
             if notes:
                 doc["notes"] = notes
             if change is not None:
-                from netlistdyn.analysis.coordinates import change_dict
+                from netlistdyn.analysis.coordinates import change_dict  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 doc["coordinates"] = change_dict(change)
             emit(to_json(doc), out)
         else:
             text = text_report(model, analysis, netlist, parsed)
             if change is not None:
-                from netlistdyn.analysis.coordinates import change_text
+                from netlistdyn.analysis.coordinates import change_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 text += change_text(change)
             if control_report:
@@ -679,13 +679,13 @@ def op(
 
     def body() -> int:
         check_outputs((netlist,), out=out)
-        from netlistdyn.formulation.operating import operating_point, point_dict, point_text
-        from netlistdyn.io.report import to_json
+        from netlistdyn.formulation.operating import operating_point, point_dict, point_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.io.report import to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         _print_warnings(parsed.warnings)
         if parsed.planar:
-            from netlistdyn.workflows import planar
+            from netlistdyn.workflows import planar  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             where = planar.planar_point(parsed, parse_param_overrides(at, "--at"))
             doc = {"netlist": netlist, "operating_point": planar.point_dict(where)}
@@ -775,7 +775,7 @@ def validate(
     4 when ngspice is missing or unusable or fails on the file (inconclusive), 5 when it ran
     out of --timeout.
     """
-    from netlistdyn.spice.ngspice import ngspice_missing
+    from netlistdyn.spice.ngspice import ngspice_missing  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     def body() -> int:
         check_outputs((netlist,), plot=plot, out=out)
@@ -783,10 +783,9 @@ def validate(
         if missing:
             click.echo(f"netlistdyn: {missing}", err=True)
             return EXIT_NO_NGSPICE
-        from netlistdyn.base import progress
-        from netlistdyn.devices.units import signal_units
-        from netlistdyn.io.report import to_json, validation_dict, validation_text
-        from netlistdyn.workflows.pipelines import NetlistText, validation_pipeline
+        from netlistdyn.devices.units import signal_units  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.io.report import to_json, validation_dict, validation_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.workflows.pipelines import NetlistText, validation_pipeline  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         # "-": the text of standard input (ngspice reads it from a temporary copy).
         source = NetlistText(STDIN_NAME, stdin_text()) if netlist == DASH else netlist
@@ -812,7 +811,7 @@ def validate(
             click.echo(f"netlistdyn: {report.spice.message} (raise it with --timeout)", err=True)
             return EXIT_TIMEOUT
         if plot and report.spice.ok:
-            from netlistdyn.io.plots import validation_plot
+            from netlistdyn.io.plots import validation_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             validation_plot(report, plot, signal_units(parse_netlist(netlist), result.outputs), result.title)
         if fmt == "json":
@@ -940,25 +939,22 @@ def simulate(
     """
 
     def body() -> int:
-        from dataclasses import replace
-
-        from netlistdyn.analysis.coordinates import select_outputs
-        from netlistdyn.analysis.validity import rod_angles, validity_warnings
-        from netlistdyn.base import progress
-        from netlistdyn.base.formatting import eng
-        from netlistdyn.devices.units import signal_units
-        from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json
-        from netlistdyn.simulation.foh import input_signals
-        from netlistdyn.simulation.integrators import EXACT_LIMIT
-        from netlistdyn.workflows.large import descriptor_wanted, simulate_descriptor_wanted
-        from netlistdyn.workflows.pipelines import simulation_pipeline
+        from netlistdyn.analysis.coordinates import select_outputs  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.analysis.validity import rod_angles, validity_warnings  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.base.formatting import eng  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.devices.units import signal_units  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.simulation.foh import input_signals  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.simulation.integrators import EXACT_LIMIT  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.workflows.large import descriptor_wanted, simulate_descriptor_wanted  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.workflows.pipelines import simulation_pipeline  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         check_outputs((netlist,), csv=csv_path, plot=plot, animate=animate, out=out)
         report_to = csv_beside_report(csv_path, out, fmt)
         split = _superpose_options(superpose, jobs, oversubscribe, scheduler, coordinates, animate)
         parsed = parse_netlist(netlist, parse_param_overrides(params))
         if split is not None:
-            from netlistdyn.workflows.superpose import check_linear
+            from netlistdyn.workflows.superpose import check_linear  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             check_linear(parsed)
         # Large, or (auto) stiff relative to the output step when no option needs the explicit
@@ -989,11 +985,11 @@ def simulate(
         angles = rod_angles(parsed)
         extra = list(angles)
         if animate:
-            from netlistdyn.io.animate import animation_options, position_variables
+            from netlistdyn.io.animate import animation_options, position_variables  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             view = animation_options(animate, fps, speed, frame_size, geometry)
             if parsed.planar:
-                from netlistdyn.io import planar_animate
+                from netlistdyn.io import planar_animate  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 extra += planar_animate.position_variables(parsed)
             else:
@@ -1001,7 +997,7 @@ def simulate(
         parsed, prepared = load_prepared(netlist, params, outputs, coordinates, ics, tuple(extra), parsed)
         full = prepared.full
         if split is not None:
-            from netlistdyn.workflows.superpose import explicit_task
+            from netlistdyn.workflows.superpose import explicit_task  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             task, span = explicit_task(parsed, full, tstop, tstep, method, rtol, atol, prepared.x0, force)
             run = _run_superposed(task, span, split, quiet)
@@ -1044,17 +1040,19 @@ def simulate(
         if csv_path:
             write_atomic(csv_path, simulation_csv(result))
         if plot:
-            from netlistdyn.io.plots import simulation_plot
+            from netlistdyn.io.plots import simulation_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             simulation_plot(result, plot)
         if animate:
-            from netlistdyn.io.animate import Animation
+            from netlistdyn.io.animate import Animation  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             signals = input_signals(parsed, horizon.tstep, horizon.tstop)
             if parsed.planar:
-                from netlistdyn.io.planar_animate import PlanarAnimation
+                from netlistdyn.io.planar_animate import PlanarAnimation  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
-                movie = PlanarAnimation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
+                movie: Animation = PlanarAnimation(
+                    parsed, run.time, run.values, full.outputs, signals(run.time), view
+                )
             else:
                 movie = Animation(parsed, run.time, run.values, full.outputs, signals(run.time), view)
             frames = movie.save(animate)
@@ -1063,7 +1061,7 @@ def simulate(
             doc = simulation_dict(result, netlist)
             doc["warnings"] = warnings
             if prepared.change is not None:
-                from netlistdyn.analysis.coordinates import change_dict
+                from netlistdyn.analysis.coordinates import change_dict  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 doc["coordinates"] = change_dict(prepared.change)
             emit(to_json(doc), report_to)
@@ -1078,7 +1076,7 @@ def simulate(
             if (result.method == "euler" or parsed.planar) and result.message:  # error, energy drift
                 text += result.message + "\n"
             if prepared.change is not None:
-                from netlistdyn.analysis.coordinates import change_text
+                from netlistdyn.analysis.coordinates import change_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
                 text += change_text(prepared.change)
             emit(text, report_to)
@@ -1150,15 +1148,12 @@ def bench(
     out: str | None,
 ) -> None:
     """Error against run time for our integration methods and for ngspice, on NETLIST, within a budget."""
-    from netlistdyn.base.processes import cpu_seconds
-
     started = cpu_seconds()  # the budget is CPU seconds (this process and its rows')
 
     def body() -> int:
-        from netlistdyn.analysis.eigen import analyze_eigenvalues
-        from netlistdyn.base import progress
-        from netlistdyn.circuit.probes import parse_probe
-        from netlistdyn.io.report import (
+        from netlistdyn.analysis.eigen import analyze_eigenvalues  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.circuit.probes import parse_probe  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.io.report import (  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
             bench_dict,
             bench_head_dict,
             bench_line,
@@ -1169,9 +1164,9 @@ def bench(
             bench_text_tail,
             to_json,
         )
-        from netlistdyn.simulation.foh import choose_horizon
-        from netlistdyn.spice.bench import MAX_POINTS, run_bench
-        from netlistdyn.spice.validate import spice_settings_for
+        from netlistdyn.simulation.foh import choose_horizon  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.spice.bench import MAX_POINTS, run_bench  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.spice.validate import spice_settings_for  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         if points > MAX_POINTS:
             raise UsageError(f"--points {points}: more than {MAX_POINTS:,} grid intervals")
@@ -1240,7 +1235,7 @@ def bench(
                     )
                 )
         if plot:
-            from netlistdyn.io.plots import bench_plot
+            from netlistdyn.io.plots import bench_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             bench_plot(report, plot)
         if not live:
@@ -1323,9 +1318,8 @@ def sweep(
     """
 
     def body() -> int:
-        from netlistdyn.base import progress
-        from netlistdyn.io.report import sweep_record_json, sweep_text, to_json
-        from netlistdyn.workflows.sweep import SweepSource, expand_cases, iter_sweep
+        from netlistdyn.io.report import sweep_record_json, sweep_text, to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.workflows.sweep import SweepSource, expand_cases, iter_sweep  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         check_outputs((netlist,), plot=plot, out=out)
         check_scheduler(scheduler)
@@ -1356,7 +1350,7 @@ def sweep(
             click.echo(f"{first} (every one of the {len(result)} cases failed)", err=True)
             return EXIT_NETLIST
         if plot:
-            from netlistdyn.io.plots import sweep_plot
+            from netlistdyn.io.plots import sweep_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             sweep_plot(result, plot)
         if fmt == "json":
@@ -1405,8 +1399,6 @@ def worker_count(jobs: int, cases: int, oversubscribe: bool, scheduler: str) -> 
 
 def _whole_file(parsed: Any) -> Any:
     """The location of a netlist as a whole (its title line)."""
-    from netlistdyn.base.errors import SourceLocation
-
     return SourceLocation(getattr(parsed, "path", None) or "<netlist>", 1)
 
 
@@ -1439,12 +1431,10 @@ MODEL_SUFFIXES = (".json", ".npz", ".mat")
 
 def load_block(path: str, params: tuple[str, ...], outputs: tuple[str, ...]) -> Any:
     """A model for ``connect``: a netlist compiled with its options, or a model saved by ``--save``."""
-    from pathlib import Path
-
     if Path(path).suffix.lower() in MODEL_SUFFIXES:
         if params or outputs:
             raise UsageError(f"{path} is a saved model: --param/--output apply to netlists only")
-        from netlistdyn.io.exports import load_model
+        from netlistdyn.io.exports import load_model  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         return load_model(path)
     return load_and_compile(path, params, list(outputs) or None)[1]
@@ -1491,11 +1481,9 @@ def connect(
     """
 
     def body() -> int:
-        from pathlib import Path
-
-        from netlistdyn.analysis.eigen import analyze_eigenvalues
-        from netlistdyn.io.report import model_dict, text_report, to_json
-        from netlistdyn.statespace.interconnect import connection_names, feedback, series
+        from netlistdyn.analysis.eigen import analyze_eigenvalues  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.io.report import model_dict, text_report, to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+        from netlistdyn.statespace.interconnect import connection_names, feedback, series  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         check_outputs((first, second), save=save, out=out)
         m1 = load_block(first, param1, output1)
@@ -1507,7 +1495,7 @@ def connect(
         links = connection_names(m1, m2, how, names, float(sign))
         analysis = analyze_eigenvalues(model.A_sparse, pencil=model.pencil)
         if save:
-            from netlistdyn.io.exports import save_model
+            from netlistdyn.io.exports import save_model  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
             save_model(model, save)
         if fmt == "json":
@@ -1538,14 +1526,13 @@ def _simulate_descriptor(
     split: tuple[int, str, bool] | None = None,
 ) -> int:
     """``simulate`` on the sparse descriptor form (see :mod:`netlistdyn.large`), superposed with ``split``."""
-    from netlistdyn.base import progress
-    from netlistdyn.base.formatting import eng
-    from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json
-    from netlistdyn.workflows.large import simulate_large
+    from netlistdyn.base.formatting import eng  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+    from netlistdyn.io.report import simulation_csv, simulation_dict, simulation_summary, to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+    from netlistdyn.workflows.large import simulate_large  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     _print_warnings(parsed.warnings)
     if split is not None:
-        from netlistdyn.workflows.superpose import descriptor_task
+        from netlistdyn.workflows.superpose import descriptor_task  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         task, horizon = descriptor_task(parsed, list(outputs) or None, tstop, tstep, ics, rtol)
         result = _run_superposed(task, horizon, split, quiet)
@@ -1570,7 +1557,7 @@ def _simulate_descriptor(
     if csv_path:
         write_atomic(csv_path, simulation_csv(result))
     if plot:
-        from netlistdyn.io.plots import simulation_plot
+        from netlistdyn.io.plots import simulation_plot  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
         simulation_plot(result, plot)
     if fmt == "json":
@@ -1611,8 +1598,7 @@ def _superpose_options(
 
 def _run_superposed(task: Any, horizon: Any, split: tuple[int, str, bool], quiet: bool) -> Any:
     """Plan, run and sum the jobs of ``simulate --superpose`` (see :mod:`netlistdyn.superpose`)."""
-    from netlistdyn.base import progress
-    from netlistdyn.workflows.superpose import plan, superpose
+    from netlistdyn.workflows.superpose import plan, superpose  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     count, scheduler, oversubscribe = split
     jobs = plan(task.netlist, count, task.tstep, task.tstop, bool(task.ics) or task.x0 is not None)
@@ -1627,8 +1613,8 @@ def _analyze_descriptor(
     parsed: Any, outputs: tuple[str, ...], fmt: str, out: str | None, refused: list[str]
 ) -> int:
     """``analyze`` of a large circuit: the descriptor form's size, states and slowest modes."""
-    from netlistdyn.io.report import to_json
-    from netlistdyn.workflows.large import DESCRIPTOR_UNKNOWNS, analyze_large, analyze_text
+    from netlistdyn.io.report import to_json  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+    from netlistdyn.workflows.large import DESCRIPTOR_UNKNOWNS, analyze_large, analyze_text  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     if refused:
         raise UsageError(

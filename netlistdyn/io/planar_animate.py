@@ -187,7 +187,7 @@ def _shifted(
 
 
 def _circle(center: tuple[float, float], radius: float) -> Any:
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle  # noqa: PLC0415 (deferred, matplotlib: optional plot extra)
 
     return Circle(center, radius, color="tab:red", zorder=4)
 

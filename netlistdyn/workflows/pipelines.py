@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -17,11 +18,23 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from netlistdyn.analysis.eigen import analyze_eigenvalues
 from netlistdyn.base.errors import UsageError
 from netlistdyn.base.values import parse_number
 from netlistdyn.circuit.netlist import Netlist
-from netlistdyn.simulation.foh import Horizon
+from netlistdyn.circuit.probes import default_probes, parse_probes
+from netlistdyn.devices.units import signal_units
+from netlistdyn.formulation.compile import compile_netlist
+from netlistdyn.frontend.parser import parse_file, parse_text
+from netlistdyn.io.display import simulation_html, simulation_text
+from netlistdyn.io.report import sweep_text, validation_text
+from netlistdyn.simulation import integrators
+from netlistdyn.simulation.foh import Horizon, choose_horizon, input_signals
+from netlistdyn.simulation.initial import around_equilibrium, transient_start
+from netlistdyn.simulation.nltransient import simulate_nonlinear
+from netlistdyn.simulation.planartransient import simulate_planar
 from netlistdyn.simulation.sampling import output_grid
+from netlistdyn.spice.validate import compare, compare_poles, spice_settings_for, with_original_check
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: A netlist as the API accepts it: a path, netlist text, or a file object.
@@ -74,8 +87,6 @@ class NetlistText:
 
     def parse(self, params: Mapping[str, Any] | None = None) -> Netlist:
         """The netlist with ``params`` (numbers or SPICE numbers) applied."""
-        from netlistdyn.frontend.parser import parse_file, parse_text
-
         overrides = to_numbers(params)
         if self.text is None:
             return parse_file(self.name, overrides)
@@ -93,7 +104,7 @@ def load_source(source: NetlistSource | NetlistText) -> NetlistText:
     if isinstance(source, NetlistText):
         return source
     if hasattr(source, "read"):
-        text = source.read()  # type: ignore[union-attr]
+        text = source.read()
         if isinstance(text, bytes):
             text = text.decode()
         name = getattr(source, "name", None)
@@ -184,8 +195,6 @@ def compile_model(
     source: NetlistSource, params: Mapping[str, Any] | None = None, outputs: str | Sequence[str] | None = None
 ) -> tuple[Netlist, StateSpaceModel]:
     """Parse and compile; (netlist, model). See :func:`netlistdyn.compile`."""
-    from netlistdyn.formulation.compile import compile_netlist
-
     with api_errors(params):
         netlist = read_netlist(source, params)
         return netlist, compile_netlist(netlist, output_names(outputs))
@@ -257,13 +266,9 @@ class Simulation:
             raise KeyError(f"{name!r}: outputs are {', '.join(self.outputs)}") from None
 
     def __repr__(self) -> str:
-        from netlistdyn.io.display import simulation_text
-
         return simulation_text(self)
 
     def _repr_html_(self) -> str:
-        from netlistdyn.io.display import simulation_html
-
         return simulation_html(self)
 
 
@@ -337,10 +342,6 @@ def simulation_pipeline(
     step : float, optional
         The fixed step of ``method="euler"`` (s); its output times are the steps.
     """
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.devices.units import signal_units
-    from netlistdyn.simulation import integrators
-    from netlistdyn.simulation.foh import choose_horizon, input_signals
 
     for value, name in ((tstop, "--tstop"), (tstep, "--tstep"), (step, "--step")):
         if value is not None and not value > 0:
@@ -382,7 +383,7 @@ def simulation_pipeline(
     # resolving them first also refuses a source with too many corners before any are listed
     signals = input_signals(netlist, horizon.tstep, horizon.tstop)
     if method == "euler":  # the output times are the steps k·h up to tstop
-        times = np.arange(int(horizon.tstop / horizon.tstep * (1 + 1e-12)) + 1) * horizon.tstep
+        times = np.arange(int(horizon.tstop / horizon.tstep * (1 + 1e-12)) + 1, dtype=float) * horizon.tstep
         shown = horizon
     else:  # a grid that shows the fastest visible mode and every source corner (see sampling)
         from_tran = tstop is None and tstep is None and netlist.tran is not None  # not the user's grid
@@ -394,20 +395,14 @@ def simulation_pipeline(
     level = None
     how = "the given initial state"
     if netlist.planar:  # a planar mechanism: its exact equations of motion
-        from netlistdyn.simulation.planartransient import simulate_planar
-
         result, how = simulate_planar(netlist, model.outputs, times, method, rtol, x0, progress, step)
     elif netlist.is_nonlinear:  # the model is the linearisation: integrate the circuit itself
-        from netlistdyn.simulation.nltransient import simulate_nonlinear
-
         u0 = signals(np.array([0.0]))[0]
         result, how = simulate_nonlinear(
             netlist, model.outputs, times, method, rtol, x0, progress, model.states, u0
         )
     else:
         if x0 is None:
-            from netlistdyn.simulation.initial import around_equilibrium, transient_start
-
             start = transient_start(netlist, model, signals(np.array([0.0]))[0])
             x0, how = start.x0, start.how
             for warning in start.warnings:
@@ -467,13 +462,11 @@ class Validation:
     reference_accuracy: float = 0.0
 
     def __repr__(self) -> str:
-        from netlistdyn.io.report import validation_text
-
         return validation_text(self.report, self.title).rstrip("\n")
 
 
 def validation_pipeline(
-    source: NetlistSource,
+    source: NetlistSource | NetlistText,
     params: Mapping[str, Any] | None = None,
     outputs: Sequence[str] | None = None,
     model_params: Mapping[str, Any] | None = None,
@@ -495,13 +488,6 @@ def validation_pipeline(
     warn : callable, optional
         Receives each compile warning.
     """
-    from dataclasses import replace
-
-    from netlistdyn.analysis.eigen import analyze_eigenvalues
-    from netlistdyn.circuit.probes import default_probes, parse_probes
-    from netlistdyn.formulation.compile import compile_netlist
-    from netlistdyn.simulation.foh import choose_horizon
-    from netlistdyn.spice.validate import compare, compare_poles, spice_settings_for
 
     loaded = load_source(source)
     parsed = loaded.parse(params)
@@ -567,10 +553,6 @@ def _original_check(
     timeout: float,
 ) -> Any:
     """ngspice's reading of the original file against the model (text is written to a temporary file)."""
-    import tempfile
-
-    from netlistdyn.spice.validate import with_original_check
-
     # ngspice's alterparam matches the lower-case names ngspice gives parameters.
     overrides = {k.lower(): v for k, v in to_numbers(params).items()}
     if loaded.text is None:
@@ -584,8 +566,6 @@ def _original_check(
 
 def reference_settings(settings: Any, chosen: Mapping[str, float]) -> Any:
     """ngspice settings with the user's ``reltol`` and maximum step (``maxstep``, s)."""
-    from dataclasses import replace
-
     changes: dict[str, Any] = {}
     if "reltol" in chosen:
         changes["reltol"] = chosen["reltol"]
@@ -690,8 +670,6 @@ class Sweep:
         return pandas.DataFrame.from_records(self.to_records())
 
     def __repr__(self) -> str:
-        from netlistdyn.io.report import sweep_text
-
         return sweep_text([sweep_record(c) for c in self.cases]).rstrip("\n")
 
 
