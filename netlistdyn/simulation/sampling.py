@@ -37,6 +37,8 @@ VISIBLE_SHARE = 1e-3
 SAMPLES_PER_PERIOD = 4
 #: A refined grid puts this many samples on the period of the fastest visible oscillation.
 REFINED_SAMPLES_PER_PERIOD = 20
+#: Eigenvector matrices worse conditioned than this give no trustworthy modal shares (no check).
+EIGENVECTOR_CONDITION_LIMIT = 1e10
 #: Largest model whose modes are found by a dense eigendecomposition for this check.
 DENSE_MODES_LIMIT = 400
 
@@ -79,17 +81,18 @@ def visible_periods(model: StateSpaceModel, tstep: float) -> list[tuple[float, f
     if n == 0 or n > DENSE_MODES_LIMIT or model.noutputs == 0 or model.ninputs == 0:
         return []
     values, right = np.linalg.eig(model.A)
-    try:
-        left = np.linalg.inv(right)  # rows: left eigenvectors scaled so that wᵢᴴ vᵢ = 1
-    except np.linalg.LinAlgError:  # defective A: no check rather than a guess
+    # A defective or nearly defective A (a free cart's double zero) has no modal split worth the
+    # name: no check rather than a guess.
+    if not np.all(np.isfinite(right)) or np.linalg.cond(right) > EIGENVECTOR_CONDITION_LIMIT:
         return []
+    left = np.linalg.inv(right)  # rows: left eigenvectors scaled so that wᵢᴴ vᵢ = 1
     observed = np.linalg.norm(model.C @ right, axis=0)
     excited = np.linalg.norm(left @ model.B, axis=1)
     magnitude = np.abs(values)
     share = np.where(magnitude > 0, observed * excited / np.where(magnitude > 0, magnitude, 1.0), 0.0)
-    if not np.any(np.isfinite(share)) or np.nanmax(share) <= 0:
+    if not np.all(np.isfinite(share)) or np.max(share) <= 0:
         return []
-    top = np.nanmax(share)
+    top = np.max(share)
     found = []
     for lam, part in zip(values, share, strict=True):
         if lam.imag <= 0 or not part >= VISIBLE_SHARE * top or -lam.real * tstep > 10:
