@@ -666,3 +666,67 @@ def test_sign_of_a_tiny_real_part_at_unit_values(resistance):
     netlist, _, eig = _analyse(text)
     _assert_within_bars(eig.modes, exact_natural_frequencies(netlist))
     assert eig.verdict == ("asymptotically stable" if resistance > 0 else "unstable")
+
+
+OPEN_TINY_ROOT_0 = """open: wide campaign seed 31400013, network 1 of its failures
+Vin n1 0 1
+L0 n2 0 13981.953668758972
+L1 n2 n3 0.32183867766395152
+C2 n5 n2 1958.8337741062032
+R3 n5 n3 0.56507936177804119
+R4 n1 n5 6.2892119821650671e-13
+L5 n2 0 0.28858891196767067
+R6 n3 n1 1.2323145780722394e-09
+Rgn1 n1 0 1.7673296244443514e-15
+Rgn2 n2 0 1.2190500864666989e-12
+Rgn3 n3 0 9.3264125483308527e-14
+Rgn4 n4 0 0.012090545792030423
+Rgn5 n5 0 2.4876534913793631e-08
+K1 L0 L1 0.73819629619738958
+.end
+"""
+OPEN_TINY_ROOT_1 = """open: wide campaign seed 31400013, network 2 of its failures
+Vin n1 0 1
+L0 n1 0 35.877302156511426
+L1 n2 n3 1011.6584221895216
+C2 n2 n1 1.0168862966121903e-07
+L3 n2 n3 13.168565535373979
+R4 n2 n3 6.7292575811738373e-15
+C5 n3 n2 8.4684516454705988e-10
+L6 0 n3 3005.4710589669003
+Rgn1 n1 0 4975.3701011469102
+Rgn2 n2 0 2.353936684841685e-14
+Rgn3 n3 0 0.43348723655326071
+.end
+"""
+OPEN_TINY_ROOT_2 = """open: wide campaign seed 31400013, network 3 of its failures
+Vin n1 0 1
+L0 n4 n5 149294.6944908016
+R1 n2 0 3.8487220308513325e-08
+L2 n2 n3 3.0037538195354299e-10
+L3 n5 0 4221.9731439218349
+C4 n1 n4 6.7487803673666953
+L5 n4 n2 179312.94696923043
+Rgn1 n1 0 362.51398399608831
+Rgn2 n2 0 0.0012037530297486071
+Rgn3 n3 0 1.2311681257379292e-14
+Rgn4 n4 0 3.5141829217554687e-14
+Rgn5 n5 0 4.2154812231109885e-12
+G1 n2 n3 n5 n2 39.433329002112274
+.end
+"""
+
+
+@pytest.mark.xfail(
+    strict=True, reason="open (found by the campaign after issue 31, fails the same on the code before it)"
+)
+@pytest.mark.parametrize(
+    "text", [OPEN_TINY_ROOT_0, OPEN_TINY_ROOT_1, OPEN_TINY_ROOT_2], ids=["zero", "5e-16", "3e-20"]
+)
+def test_open_tiny_roots_beside_exact_zeros(text):
+    """Exact 0 reported as −2.08e-13 ± 9e-28 (verdict "asymptotically stable", exact "marginally
+    stable"); exact −5.2e-16 as −7.8e-18 ± 2e-32 beside two topological zeros; exact −3.4e-20 as
+    −4.6e-19 ± 1e-33. Tiny roots of the circuit equations beside exact zeros: the bars of the
+    verified value do not reach the exact root."""
+    netlist, _, eig = _analyse(text, ["v(n1)"])
+    _assert_within_bars(eig.modes, exact_natural_frequencies(netlist))
