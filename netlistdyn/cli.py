@@ -209,7 +209,7 @@ def stdin_text() -> str:
     ctx = click.get_current_context(silent=True)
     if ctx is not None and "netlistdyn.stdin" in ctx.meta:
         return str(ctx.meta["netlistdyn.stdin"])
-    from netlistdyn.frontend.parser import decode  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
+    from netlistdyn.frontend.lines import decode  # noqa: PLC0415 (deferred so --help and other commands do not load numpy/scipy)
 
     try:
         data = click.get_binary_stream("stdin").read()

@@ -21,7 +21,7 @@ from netlistdyn.base.errors import UsageError
 from netlistdyn.base.formatting import eng_formatter
 from netlistdyn.base.optional import require
 from netlistdyn.base.values import parse_number
-from netlistdyn.frontend.parser import read_lines
+from netlistdyn.frontend.lines import read_lines
 from netlistdyn.io.bode import bode
 
 
