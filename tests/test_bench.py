@@ -19,7 +19,8 @@ from click.testing import CliRunner
 
 from netlistdyn.base.processes import cpu_seconds, run_program
 from netlistdyn.circuit.probes import parse_probe
-from netlistdyn.cli import load_and_compile, main
+from netlistdyn.cli import main
+from netlistdyn.commandline import load_and_compile
 from netlistdyn.simulation import integrators
 from netlistdyn.simulation.foh import Horizon
 from netlistdyn.spice import bench

@@ -19,7 +19,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("simulation",),
     ("spice", "io"),
     ("workflows",),
-    ("api",),
+    ("api", "commandline"),
     ("cli", "__init__"),
     ("__main__",),
 )
