@@ -118,6 +118,7 @@ SUBPACKAGES = (
     "io",
     "workflows",
     "api",
+    "commandline",
     "cli",
 )
 
