@@ -244,3 +244,27 @@ def test_bench_under_load_scores_every_row_that_ran() -> None:
     for row in ran:
         assert row.status in ("ok", "unverified"), row
         assert math.isfinite(row.error), row
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_a_child_orphaned_before_its_death_signal_is_armed_ends_itself() -> None:
+    """The race the test above can hit under load: the parent dies between the fork and the child's
+    ``prctl(PR_SET_PDEATHSIG)``, which covers only later deaths. The child then sees a parent other
+    than the one that started it and ends itself (here its expected parent is a pid it never had)."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent
+    script = (
+        f"import sys; sys.path.insert(0, {str(root)!r}); "
+        "from netlistdyn.base.processes import _die_with_parent; "
+        "_die_with_parent(parent=-1); print('ran on')"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1 and "ran on" not in done.stdout
+    kept = subprocess.run(
+        [sys.executable, "-c", script.replace("parent=-1", "parent=__import__('os').getppid()")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert kept.returncode == 0 and "ran on" in kept.stdout

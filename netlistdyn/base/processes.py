@@ -103,10 +103,20 @@ class ProgramRun:
     wall: float
 
 
-def _die_with_parent() -> None:
-    """In the child before exec (Linux): be killed when this process dies, even by SIGKILL."""
+def _die_with_parent(parent: int | None = None) -> None:
+    """In the child before exec (Linux): be killed when this process dies, even by SIGKILL.
+
+    Parameters
+    ----------
+    parent : int, optional
+        The pid of the process that started this one, read before the fork. A parent that died
+        between the fork and the ``prctl`` (the request only covers a death after it) leaves
+        this child orphaned already: it then ends itself instead of running on unattended.
+    """
     with contextlib.suppress(Exception):
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if parent is not None and os.getppid() != parent:
+        os._exit(1)
 
 
 def detached_worker() -> None:
@@ -165,8 +175,10 @@ def run_program(
         The child's environment (default: this process's).
     """
 
+    parent = os.getpid()
+
     def prepare() -> None:
-        _die_with_parent()
+        _die_with_parent(parent)
         if cpu_limit is not None:
             resource.setrlimit(resource.RLIMIT_CPU, (int(cpu_limit), int(cpu_limit) + 5))
 
