@@ -11,6 +11,8 @@ element and its line (the messages are those of the linear compiler's graph, whi
 
 from __future__ import annotations
 
+from collections.abc import Collection, Container
+
 from netlistdyn.base.errors import TopologyError
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 
@@ -28,7 +30,29 @@ def check_netlist(netlist: Netlist) -> None:
         voltage source, a coupling of anything but two distinct inductors, or a node with no
         path to ground.
     """
-    nodes = {GROUND, *netlist.nodes}
+    check_references(netlist, {GROUND, *netlist.nodes})
+    _check_grounded(netlist)
+
+
+def check_references(
+    netlist: Netlist, nodes: Container[str], coupled_kinds: Collection[Kind] = COUPLED_KINDS
+) -> None:
+    """Refuse a controlling node outside ``nodes``, a controlling element that is not a voltage
+    source, and a coupling of anything but two distinct elements of ``coupled_kinds``.
+
+    Parameters
+    ----------
+    netlist : Netlist
+    nodes : container of str
+        The nodes the circuit has (the parsed node set, or the compiler's graph).
+    coupled_kinds : collection of Kind
+        What a ``K`` may join (the linear compiler: linear inductors only).
+
+    Raises
+    ------
+    TopologyError
+        Naming the element and its line.
+    """
     by_key = {e.key: e for e in netlist.elements}
     for element in netlist.elements:
         for node in element.control_nodes or ():
@@ -47,13 +71,12 @@ def check_netlist(netlist: Netlist) -> None:
         if element.coupled is not None:
             for name in element.coupled:
                 other = by_key.get(name)
-                if other is None or other.kind not in COUPLED_KINDS:
+                if other is None or other.kind not in coupled_kinds:
                     raise TopologyError(
                         f"{element.label}: {name!r} is not an inductor in this netlist", element.loc
                     )
             if element.coupled[0] == element.coupled[1]:
                 raise TopologyError(f"{element.label}: couples {element.coupled[0]} with itself", element.loc)
-    _check_grounded(netlist)
 
 
 def _check_grounded(netlist: Netlist) -> None:

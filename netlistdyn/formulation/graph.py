@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from netlistdyn.base.errors import TopologyError
+from netlistdyn.circuit.checks import check_references
 from netlistdyn.circuit.netlist import GROUND, Element, Kind, Netlist
 from netlistdyn.devices.registry import REGISTRY, Registry
 from netlistdyn.devices.traits import Role
@@ -196,32 +197,9 @@ def build_graph(
 
 
 def _check_references(netlist: Netlist, graph: nx.MultiGraph) -> None:
-    by_key = {e.key: e for e in netlist.elements}
-    for element in netlist.elements:
-        if element.control_nodes is not None:
-            for node in element.control_nodes:
-                if node not in graph:
-                    raise TopologyError(
-                        f"{element.label}: controlling node {node!r} is not connected to any element",
-                        element.loc,
-                    )
-        if element.control_source is not None:
-            sense = by_key.get(element.control_source)
-            if sense is None or sense.kind is not Kind.VSOURCE:
-                raise TopologyError(
-                    f"{element.label}: controlling element {element.control_source!r} "
-                    "is not a voltage source in this netlist",
-                    element.loc,
-                )
-        if element.coupled is not None:
-            for name in element.coupled:
-                other = by_key.get(name)
-                if other is None or other.kind is not Kind.INDUCTOR:
-                    raise TopologyError(
-                        f"{element.label}: {name!r} is not an inductor in this netlist", element.loc
-                    )
-            if element.coupled[0] == element.coupled[1]:
-                raise TopologyError(f"{element.label}: couples {element.coupled[0]} with itself", element.loc)
+    """The parser's reference checks again on the compiler's graph: a netlist built in Python, or
+    linearised, reaches the compiler without a parse (a coupling joins linear inductors only here)."""
+    check_references(netlist, graph, (Kind.INDUCTOR,))
 
 
 def _check_grounded(netlist: Netlist, graph: nx.MultiGraph) -> None:
