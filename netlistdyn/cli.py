@@ -261,7 +261,7 @@ def analyze(
             if bode.lower().endswith(".csv"):
                 write_atomic(bode, bode_csv(response))
             else:
-                bode_plot(model, bode, ac_range(parsed))
+                bode_plot(response, bode, model.title)
         if fmt == "json":
             doc = model_dict(model, analysis)
             doc["netlist"] = netlist

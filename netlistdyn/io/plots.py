@@ -22,7 +22,7 @@ from netlistdyn.base.formatting import eng_formatter
 from netlistdyn.base.optional import require
 from netlistdyn.base.values import parse_number
 from netlistdyn.frontend.lines import read_lines
-from netlistdyn.io.bode import bode
+from netlistdyn.io.bode import Bode
 
 
 def _figure() -> Any:
@@ -269,14 +269,13 @@ def ac_range(netlist: Any) -> tuple[float, float] | None:
     return None
 
 
-def bode_plot(model: Any, path: str, hz_range: tuple[float, float] | None = None) -> None:
+def bode_plot(data: Bode, path: str, title: str) -> None:
     """Magnitude (dB) and phase (degrees) of every input→output pair against frequency.
 
-    The bottom axis is in Hz, the top one in rad/s. The range is
-    ``hz_range`` (the netlist's ``.ac`` range) when given, else two decades
-    either side of the eigenvalue magnitudes (see :func:`netlistdyn.io.bode.bode`).
+    The bottom axis is in Hz, the top one in rad/s. ``data`` is the response on its grid
+    (:func:`netlistdyn.io.bode.bode`: the netlist's ``.ac`` range, else two decades either side
+    of the eigenvalue magnitudes); ``title`` is the model's.
     """
-    data = bode(model, hz_range)
     hz, source = data.frequency_hz, data.source
     db, degrees = data.magnitude_db(), data.phase_deg()
     plt = _figure()
@@ -285,7 +284,7 @@ def bode_plot(model: Any, path: str, hz_range: tuple[float, float] | None = None
         mag.semilogx(hz, db[:, p], label=f"{out}/{inp}", linewidth=1.2)
         phase.semilogx(hz, degrees[:, p], linewidth=1.2)
     mag.set_ylabel("|H| [dB]")
-    mag.set_title(f"frequency response: {_title(model.title, 80)} ({source})", fontsize=9)
+    mag.set_title(f"frequency response: {_title(title, 80)} ({source})", fontsize=9)
     mag.grid(True, which="both", alpha=0.3)
     if mag.get_legend_handles_labels()[0]:
         mag.legend(fontsize=8, ncol=2, loc="lower left", framealpha=0.8)
