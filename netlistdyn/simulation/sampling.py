@@ -29,6 +29,7 @@ from netlistdyn.base.errors import SourceLocation
 from netlistdyn.base.formatting import eng
 from netlistdyn.circuit.netlist import Diagnostic, Netlist
 from netlistdyn.circuit.sources import breakpoints, resolved_waveforms
+from netlistdyn.circuit.waveforms import Waveform
 from netlistdyn.statespace.model import StateSpaceModel
 
 #: A mode whose share of the outputs' step response is below this fraction of the largest is not shown.
@@ -101,10 +102,13 @@ def visible_periods(model: StateSpaceModel, tstep: float) -> list[tuple[float, f
     return found
 
 
-def shortest_phase(netlist: Netlist, tstep: float, tstop: float) -> tuple[str, float] | None:
-    """The source with the shortest interval between two of its corners, and that interval (s)."""
+def shortest_phase(netlist: Netlist, waveforms: Sequence[Waveform], tstop: float) -> tuple[str, float] | None:
+    """The source with the shortest interval between two of its corners, and that interval (s).
+
+    ``waveforms`` are the netlist's sources' waveforms, resolved for the transient, in order.
+    """
     best: tuple[str, float] | None = None
-    for element, waveform in zip(netlist.sources, resolved_waveforms(netlist, (tstep, tstop)), strict=True):
+    for element, waveform in zip(netlist.sources, waveforms, strict=True):
         corners = breakpoints([waveform], tstop)
         if corners.size < 2:
             continue
@@ -164,12 +168,13 @@ def output_grid(
                 f"period; values between samples (and the reported extremes) can be far off — use "
                 f"--tstep {eng(period / REFINED_SAMPLES_PER_PERIOD, 's')} or less"
             )
-    phase = shortest_phase(netlist, tstep, tstop)
+    waveforms = resolved_waveforms(netlist, (tstep, tstop))
+    phase = shortest_phase(netlist, waveforms, tstop)
     corners: NDArray[np.float64] = np.zeros(0)
     if phase is not None and phase[1] < tstep:
         name, gap = phase
         if refine:
-            corners = breakpoints(resolved_waveforms(netlist, (tstep, tstop)), tstop)
+            corners = breakpoints(waveforms, tstop)
             if corners.size + count > max_points:
                 corners = np.zeros(0)
         if corners.size:
